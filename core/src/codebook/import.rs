@@ -1,0 +1,157 @@
+//! Importing standard code tables (the JSON dumps in `shared/codebooks/`) into Tagsmith's
+//! convention.
+//!
+//! **Tagsmith's convention is OpenCV's**: codes are read row-major from the top-left cell of the
+//! grid, most significant bit first, 1 = white; a rendering of an ID equals OpenCV's
+//! `generateImageMarker` cell for cell. The AprilTag library draws the same ID turned 180°
+//! (its `tag36h11` ID k is OpenCV's `DICT_APRILTAG_36h11` ID k rotated by a half turn), so tables
+//! in the AprilTag library's own layout (`bit_x`/`bit_y`) are turned 180° on import. The IDs are
+//! the same either way; corner order and pose frame follow OpenCV's.
+
+use serde::Deserialize;
+
+/// A table dumped from OpenCV's predefined `cv2.aruco` dictionaries.
+#[derive(Debug, Clone, Deserialize)]
+pub struct OpenCvTable {
+    pub name: String,
+    #[serde(default)]
+    pub source: String,
+    pub bits_per_side: usize,
+    pub codes: Vec<String>,
+    #[serde(default)]
+    pub min_hamming_distance_with_rotations: Option<u32>,
+    #[serde(default)]
+    pub opencv_max_correction_bits: Option<u32>,
+}
+
+impl OpenCvTable {
+    pub fn parse(json: &str) -> Result<Self, String> {
+        serde_json::from_str(json).map_err(|e| e.to_string())
+    }
+
+    /// Codes as bits (row-major over the data cells, 1 = white).
+    pub fn bits(&self) -> Result<Vec<Vec<u8>>, String> {
+        let len = self.bits_per_side * self.bits_per_side;
+        self.codes.iter().map(|c| hex_bits(c, len)).collect()
+    }
+}
+
+/// A family table of the AprilTag 3 library.
+#[derive(Debug, Clone, Deserialize)]
+pub struct AprilTag3Table {
+    pub name: String,
+    #[serde(default)]
+    pub source: String,
+    pub nbits: usize,
+    pub h: u32,
+    pub width_at_border: i64,
+    pub total_width: i64,
+    pub reversed_border: bool,
+    /// Stored as unsigned 32-bit in the dump; negative offsets wrap.
+    pub bit_x: Vec<u32>,
+    pub bit_y: Vec<u32>,
+    pub codes: Vec<String>,
+}
+
+/// An AprilTag 3 family in Tagsmith's grid form: a cell map and row-major codes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GridTable {
+    /// `total_width` rows: `.` data, `b` black, `w` white, `-` not part of the tag.
+    pub cells: Vec<String>,
+    pub codes: Vec<Vec<u8>>,
+    /// The `width_at_border` square (AprilTag's tag size) as (first cell, cells per side).
+    pub border_square: (usize, usize),
+}
+
+impl AprilTag3Table {
+    pub fn parse(json: &str) -> Result<Self, String> {
+        let t: Self = serde_json::from_str(json).map_err(|e| e.to_string())?;
+        if t.bit_x.len() != t.nbits || t.bit_y.len() != t.nbits {
+            return Err(format!("{}: bit_x/bit_y must list {} cells", t.name, t.nbits));
+        }
+        if !(1..=32).contains(&t.total_width) || t.width_at_border > t.total_width {
+            return Err(format!("{}: implausible widths", t.name));
+        }
+        Ok(t)
+    }
+
+    /// Converts to Tagsmith's convention: the AprilTag layout turned 180°, codes read row-major.
+    pub fn to_grid(&self) -> Result<GridTable, String> {
+        let w = self.total_width;
+        let start = (w - self.width_at_border) / 2;
+        let mut grid = vec![vec![b'-'; w as usize]; w as usize];
+        let mut ring = |side: i64, colour: u8| {
+            let s = (w - side) / 2;
+            for i in 0..side {
+                for (x, y) in [(s + i, s), (s + i, s + side - 1), (s, s + i), (s + side - 1, s + i)] {
+                    grid[y as usize][x as usize] = colour;
+                }
+            }
+        };
+        // AprilTag draws the white frame, then the black one, then the data bits over both.
+        let (white, black) = if self.reversed_border {
+            (self.width_at_border, self.width_at_border + 2)
+        } else {
+            (self.width_at_border + 2, self.width_at_border)
+        };
+        ring(white, b'w');
+        ring(black, b'b');
+        let cell_of_bit: Vec<(usize, usize)> = (0..self.nbits)
+            .map(|i| {
+                let (x, y) = (self.bit_x[i] as i32 as i64 + start, self.bit_y[i] as i32 as i64 + start);
+                if !(0..w).contains(&x) || !(0..w).contains(&y) {
+                    return Err(format!("{}: bit {i} lies outside the {w}×{w} tag", self.name));
+                }
+                // Half turn into OpenCV's orientation.
+                Ok(((w - 1 - x) as usize, (w - 1 - y) as usize))
+            })
+            .collect::<Result<_, _>>()?;
+        for &(x, y) in &cell_of_bit {
+            grid[y][x] = b'.';
+        }
+        // Row-major code position of every data cell.
+        let mut order: Vec<(usize, usize)> = cell_of_bit.clone();
+        order.sort_by_key(|&(x, y)| (y, x));
+        order.dedup();
+        if order.len() != self.nbits {
+            return Err(format!("{}: two bits share a cell", self.name));
+        }
+        let position = |cell: (usize, usize)| order.binary_search_by_key(&(cell.1, cell.0), |&(x, y)| (y, x));
+        let codes = self
+            .codes
+            .iter()
+            .map(|c| {
+                let bits = hex_bits(c.trim_start_matches("0x"), self.nbits)?;
+                let mut out = vec![0u8; self.nbits];
+                for (i, &b) in bits.iter().enumerate() {
+                    out[position(cell_of_bit[i]).expect("every bit's cell is in the order")] = b;
+                }
+                Ok(out)
+            })
+            .collect::<Result<_, String>>()?;
+        Ok(GridTable {
+            cells: grid.into_iter().map(|r| String::from_utf8(r).expect("ASCII")).collect(),
+            codes,
+            border_square: (start as usize, self.width_at_border as usize),
+        })
+    }
+}
+
+/// The low `len` bits of a hex number, most significant first.
+fn hex_bits(text: &str, len: usize) -> Result<Vec<u8>, String> {
+    let mut bits = Vec::with_capacity(text.len() * 4);
+    for c in text.chars() {
+        let v = c.to_digit(16).ok_or_else(|| format!("{text:?} is not hexadecimal"))?;
+        bits.extend((0..4).rev().map(|b| ((v >> b) & 1) as u8));
+    }
+    if bits.len() < len {
+        let mut padded = vec![0; len - bits.len()];
+        padded.extend(bits);
+        return Ok(padded);
+    }
+    let extra = bits.len() - len;
+    if bits[..extra].iter().any(|&b| b == 1) {
+        return Err(format!("{text:?} has more than {len} bits"));
+    }
+    Ok(bits[extra..].to_vec())
+}

@@ -1,0 +1,64 @@
+//! Export of binary grid families to OpenCV's ArUco dictionary file (`cv2.aruco.Dictionary`
+//! `readDictionary` / `aruco::Dictionary::readDictionary`), so that a printed family can be
+//! detected with OpenCV as well.
+
+use crate::family::{Assignment, Family};
+use crate::render::readback::Reader;
+use std::fmt::Write;
+
+/// The YAML text of an OpenCV dictionary: `nmarkers`, `markersize`, `maxCorrectionBits` and one
+/// `marker_i` string of `markersize²` bits (row-major, 1 = white) per ID.
+///
+/// OpenCV reads black and white cells inside a one-cell black border, so the family must be a
+/// grid of that shape whose two symbols are a dark and a light cell.
+pub fn dictionary_yaml(family: &Family) -> Result<String, String> {
+    let not_readable = |why: String| format!("{} cannot be read by OpenCV's ArUco detector: {why}", family.name());
+    if !family.is_grid() {
+        return Err(not_readable("it is not a grid family".into()));
+    }
+    if family.q() != 2 {
+        return Err(not_readable(format!("it has {} symbols; OpenCV reads binary cells", family.q())));
+    }
+    let reader = Reader::new(family);
+    let dark = |cat: usize| reader.mean_gray(cat) < 96.0;
+    let light = |cat: usize| reader.mean_gray(cat) > 160.0;
+    let (s0, s1) = (family.symbol_category(0), family.symbol_category(1));
+    let one_is_white = match (dark(s0) && light(s1), light(s0) && dark(s1)) {
+        (true, _) => true,
+        (_, true) => false,
+        _ => return Err(not_readable("its two symbols are not a dark and a light cell".into())),
+    };
+    let n = (family.extent().width().round() as usize).max(1);
+    let inner = n.saturating_sub(2);
+    let kps = family.keypoints();
+    for k in kps {
+        let (x, y) = (k.pos[0] - 0.5, k.pos[1] - 0.5);
+        let on_border = x < 0.5 || y < 0.5 || x > n as f64 - 1.5 || y > n as f64 - 1.5;
+        let ok = match k.assignment {
+            Assignment::Fixed(c) => on_border && dark(c),
+            Assignment::Symbol(_) => !on_border,
+        };
+        if !ok || k.size != 1.0 {
+            return Err(not_readable(format!(
+                "OpenCV needs a one-cell dark border around {inner}×{inner} data cells; the cell at \
+                 column {x}, row {y} does not fit that"
+            )));
+        }
+    }
+    if kps.len() != n * n || family.code_len() != inner * inner {
+        return Err(not_readable("the grid has cells without keypoints or extra keypoints".into()));
+    }
+    let mut out = String::from("%YAML:1.0\n---\n");
+    let cb = family.codebook();
+    let _ = writeln!(out, "nmarkers: {}", cb.len());
+    let _ = writeln!(out, "markersize: {inner}");
+    let _ = writeln!(out, "maxCorrectionBits: {}", cb.max_correction());
+    for (id, code) in cb.codes().iter().enumerate() {
+        let bits: String = code
+            .iter()
+            .map(|&s| if (s == 1) == one_is_white { '1' } else { '0' })
+            .collect();
+        let _ = writeln!(out, "marker_{id}: \"{bits}\"");
+    }
+    Ok(out)
+}

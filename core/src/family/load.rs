@@ -1,0 +1,49 @@
+//! Reading and writing family JSON.
+
+use super::spec::FamilySpec;
+use super::{Family, FamilyError, Problem};
+use std::path::Path;
+
+/// Largest family file accepted; a codebook of 100 000 codes of 1024 bits fits in well under this.
+const MAX_FILE_BYTES: usize = 64 * 1024 * 1024;
+
+/// Parses and validates a family from JSON text. Errors carry JSON paths but no file name.
+pub fn from_json_str(text: &str) -> Result<Family, FamilyError> {
+    if text.len() > MAX_FILE_BYTES {
+        return Err(FamilyError::single(
+            "",
+            format!("file is {} bytes, over the limit of {MAX_FILE_BYTES}", text.len()),
+        ));
+    }
+    let de = &mut serde_json::Deserializer::from_str(text);
+    let spec: FamilySpec = serde_path_to_error::deserialize(de).map_err(|e| {
+        let path = e.path().to_string();
+        let path = if path == "." { String::new() } else { path };
+        FamilyError::new(vec![Problem::new(path, e.into_inner().to_string())])
+    })?;
+    Family::from_spec(spec)
+}
+
+/// Reads, parses and validates a family file; errors name the file.
+pub fn load_file(path: &Path) -> Result<Family, FamilyError> {
+    let bytes = std::fs::read(path)
+        .map_err(|e| FamilyError::single("", format!("cannot read: {e}")).in_file(path))?;
+    let text = String::from_utf8(bytes)
+        .map_err(|e| FamilyError::single("", format!("not UTF-8 text: {e}")).in_file(path))?;
+    from_json_str(&text).map_err(|e| e.in_file(path))
+}
+
+/// Pretty JSON of a spec, as written to family files (2-space indent, trailing newline).
+pub fn to_json_string(spec: &FamilySpec) -> String {
+    let mut s = serde_json::to_string_pretty(spec).expect("a family spec always serialises");
+    s.push('\n');
+    s
+}
+
+/// The JSON Schema of the family format, generated from the spec types.
+pub fn schema_json() -> String {
+    let schema = schemars::schema_for!(FamilySpec);
+    let mut s = serde_json::to_string_pretty(&schema).expect("a schema always serialises");
+    s.push('\n');
+    s
+}

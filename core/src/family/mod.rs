@@ -1,0 +1,183 @@
+//! Marker families: the file format ([`spec`]), loading with validation ([`load`]), and the
+//! validated [`Family`] with everything derived from a spec — keypoints in canonical order, the
+//! rotations the layout admits, and the parsed codebook.
+
+pub mod designs;
+mod error;
+mod geometry;
+mod load;
+pub mod spec;
+mod validate;
+
+pub use error::{FamilyError, Problem};
+pub use geometry::{Extent, Keypoint, Rotation};
+pub use load::{from_json_str, load_file, schema_json, to_json_string};
+pub use spec::FamilySpec;
+
+use crate::codebook::Codebook;
+use crate::color::Rgb;
+use crate::render::primitives::CategoryPattern;
+
+/// What a keypoint carries.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Assignment {
+    /// Always drawn with this category (border, orientation, non-coding).
+    Fixed(usize),
+    /// Carries code symbol number `n` (position in the code).
+    Symbol(usize),
+}
+
+/// A validated family, ready to render, print and decode.
+#[derive(Debug, Clone)]
+pub struct Family {
+    spec: FamilySpec,
+    background: Rgb,
+    categories: Vec<CategoryPattern>,
+    /// Symbol value → category index.
+    symbol_categories: Vec<usize>,
+    keypoints: Vec<Keypoint>,
+    /// Code position → keypoint index.
+    code_keypoints: Vec<usize>,
+    /// Geometric symmetries of the keypoint layout; index 0 is the identity.
+    rotations: Vec<Rotation>,
+    extent: Extent,
+    quiet_zone: f64,
+    codebook: Codebook,
+}
+
+impl Family {
+    /// Validates a spec and derives the family; every problem found is reported, each with its
+    /// JSON path.
+    pub fn from_spec(spec: FamilySpec) -> Result<Self, FamilyError> {
+        validate::build(spec)
+    }
+
+    pub fn spec(&self) -> &FamilySpec {
+        &self.spec
+    }
+    pub fn name(&self) -> &str {
+        &self.spec.name
+    }
+    /// The title, or the name when the family has none.
+    pub fn title(&self) -> &str {
+        if self.spec.title.is_empty() {
+            &self.spec.name
+        } else {
+            &self.spec.title
+        }
+    }
+    pub fn background(&self) -> Rgb {
+        self.background
+    }
+    pub fn categories(&self) -> &[CategoryPattern] {
+        &self.categories
+    }
+    /// Number of symbol categories (the codebook's alphabet size).
+    pub fn q(&self) -> usize {
+        self.symbol_categories.len()
+    }
+    /// The category that draws symbol value `s`.
+    pub fn symbol_category(&self, symbol: u8) -> usize {
+        self.symbol_categories[symbol as usize]
+    }
+    /// The symbol value a category stands for, if it is a symbol category.
+    pub fn category_symbol(&self, category: usize) -> Option<u8> {
+        match self.spec.categories.get(category)?.role {
+            spec::Role::Symbol(s) => Some(s),
+            spec::Role::Fixed => None,
+        }
+    }
+    pub fn keypoints(&self) -> &[Keypoint] {
+        &self.keypoints
+    }
+    pub fn code_len(&self) -> usize {
+        self.code_keypoints.len()
+    }
+    /// Keypoint index of each code position.
+    pub fn code_keypoints(&self) -> &[usize] {
+        &self.code_keypoints
+    }
+    pub fn rotations(&self) -> &[Rotation] {
+        &self.rotations
+    }
+    /// Rotations under which the fixed pattern looks the same, so only the code tells them apart
+    /// (identity excluded): the codebook's minimum distance is taken over these.
+    pub fn ambiguous_rotations(&self) -> impl Iterator<Item = &Rotation> {
+        self.rotations
+            .iter()
+            .skip(1)
+            .filter(|r| r.code_perm.is_some() && r.preserves_fixed)
+    }
+    pub fn codebook(&self) -> &Codebook {
+        &self.codebook
+    }
+    /// The marker's drawn area in marker units, quiet zone excluded.
+    pub fn extent(&self) -> Extent {
+        self.extent
+    }
+    /// White margin around the extent, in marker units.
+    pub fn quiet_zone(&self) -> f64 {
+        self.quiet_zone
+    }
+    /// ROI points in marker units.
+    pub fn roi_points(&self) -> &[[f64; 2]] {
+        &self.spec.roi.points
+    }
+    /// The marker size in marker units: the distance between ROI points 0 and 1.
+    pub fn roi_side(&self) -> f64 {
+        let [a, b] = [self.spec.roi.points[0], self.spec.roi.points[1]];
+        (b[0] - a[0]).hypot(b[1] - a[1])
+    }
+    /// The size of one cell in marker units (grids: 1; otherwise the largest keypoint cell).
+    pub fn cell_size(&self) -> f64 {
+        self.keypoints.iter().map(|k| k.size).fold(0.0, f64::max)
+    }
+    pub fn is_grid(&self) -> bool {
+        matches!(self.spec.layout, spec::Layout::Grid { .. })
+    }
+
+    /// The category drawn at every keypoint for code `id`.
+    pub fn keypoint_categories(&self, id: usize) -> Option<Vec<usize>> {
+        let code = self.codebook.code(id)?;
+        Some(
+            self.keypoints
+                .iter()
+                .map(|k| match k.assignment {
+                    Assignment::Fixed(c) => c,
+                    Assignment::Symbol(n) => self.symbol_categories[code[n] as usize],
+                })
+                .collect(),
+        )
+    }
+
+    /// Indices of the keypoints the detector regresses.
+    pub fn regressed_keypoints(&self) -> Vec<usize> {
+        geometry::regressed_keypoints(self)
+    }
+
+    /// Non-fatal remarks about the design (printing and decoding risks).
+    pub fn warnings(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        if self.quiet_zone < self.cell_size() - 1e-9 {
+            out.push(format!(
+                "{}: the quiet zone ({:.2} units) is thinner than one cell ({:.2}); detectors need a \
+                 light margin around the marker",
+                self.name(),
+                self.quiet_zone,
+                self.cell_size()
+            ));
+        }
+        if let Some(d) = self.spec.codebook.min_distance {
+            let limit = self.codebook.max_correction() as u32;
+            if d > 0 && 2 * limit >= d {
+                out.push(format!(
+                    "{}: correcting {limit} errors with a minimum distance of {d} can decode a \
+                     marker as the wrong ID (safe limit: {})",
+                    self.name(),
+                    (d - 1) / 2
+                ));
+            }
+        }
+        out
+    }
+}

@@ -1,0 +1,14 @@
+//! Tagsmith: design fiducial-marker families and render, print and decode them.
+//!
+//! The pipeline, one module per stage: [`family`] (the data model, JSON I/O and validation) →
+//! [`codebook`] (code tables, decoding, generation) → [`render`] (vector scenes, SVG, rasters,
+//! sheets, PDF). [`builtin`] holds the families shipped in `families/`.
+
+pub mod builtin;
+pub mod codebook;
+pub mod color;
+pub mod family;
+pub mod io;
+pub mod render;
+
+pub use family::{Family, FamilyError};

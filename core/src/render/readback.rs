@@ -1,0 +1,101 @@
+//! Reading a rendered marker back: sample each keypoint's cell in a raster and classify it by the
+//! nearest category template. This checks that a family's patterns are distinct and that a
+//! rendering carries its own ID; it is not a detector (it needs the marker's exact placement).
+
+use super::primitives::{Path, Seg};
+use super::raster::rasterize;
+use super::scene::{Item, MarkerScene};
+use crate::family::Family;
+use tiny_skia::Pixmap;
+
+/// Samples per cell side.
+const K: usize = 6;
+/// Fraction of the cell that is sampled: away from the edges, where anti-aliasing blends cells.
+const SPAN: f64 = 0.8;
+
+/// Category templates of a family: the gray levels at the sample points of a cell of each category.
+pub struct Reader {
+    templates: Vec<Vec<f64>>,
+}
+
+fn sample_offsets() -> impl Iterator<Item = (f64, f64)> {
+    (0..K * K).map(|n| {
+        let (i, j) = (n % K, n / K);
+        (((i as f64 + 0.5) / K as f64 - 0.5) * SPAN, ((j as f64 + 0.5) / K as f64 - 0.5) * SPAN)
+    })
+}
+
+impl Reader {
+    pub fn new(family: &Family) -> Self {
+        const CELL_PX: f64 = 60.0;
+        let templates = family
+            .categories()
+            .iter()
+            .map(|pattern| {
+                let square = |c| Path(vec![Seg::Move(0.0, 0.0), Seg::Line(c, 0.0), Seg::Line(c, c), Seg::Line(0.0, c), Seg::Close]);
+                let mut items = vec![Item {
+                    path: square(CELL_PX),
+                    fill: Some(family.background()),
+                    stroke: None,
+                }];
+                items.extend(pattern.items.iter().map(|it| Item {
+                    path: it.path.map(|x, y| ((x + 0.5) * CELL_PX, (y + 0.5) * CELL_PX)),
+                    fill: it.fill,
+                    stroke: it.stroke.map(|(c, w)| (c, w * CELL_PX)),
+                }));
+                let scene = MarkerScene {
+                    width_mm: CELL_PX,
+                    height_mm: CELL_PX,
+                    items,
+                    scale: 1.0,
+                    origin: [0.0; 2],
+                };
+                let pixmap = rasterize(&scene, 1.0).expect("a 60 px cell always renders");
+                sample_offsets()
+                    .map(|(u, v)| bilinear(&pixmap, (u + 0.5) * CELL_PX, (v + 0.5) * CELL_PX))
+                    .collect()
+            })
+            .collect();
+        Self { templates }
+    }
+
+    /// Mean gray level (0 black – 255 white) of a category's cell.
+    pub fn mean_gray(&self, category: usize) -> f64 {
+        let t = &self.templates[category];
+        t.iter().sum::<f64>() / t.len() as f64
+    }
+
+    /// The category read at every keypoint of a raster of `scene` (rendered at `px_per_mm`).
+    pub fn read(&self, family: &Family, scene: &MarkerScene, pixmap: &Pixmap, px_per_mm: f64) -> Vec<Option<usize>> {
+        family
+            .keypoints()
+            .iter()
+            .map(|k| {
+                let samples: Vec<f64> = sample_offsets()
+                    .map(|(u, v)| {
+                        let mm = scene.to_mm([k.pos[0] + u * k.size, k.pos[1] + v * k.size]);
+                        bilinear(pixmap, mm[0] * px_per_mm, mm[1] * px_per_mm)
+                    })
+                    .collect();
+                self.templates
+                    .iter()
+                    .enumerate()
+                    .map(|(c, t)| (t.iter().zip(&samples).map(|(a, b)| (a - b) * (a - b)).sum::<f64>(), c))
+                    .min_by(|a, b| a.0.total_cmp(&b.0))
+                    .map(|(_, c)| c)
+            })
+            .collect()
+    }
+}
+
+/// Gray level at a sub-pixel position (pixel centres at +0.5), clamped to the image.
+fn bilinear(pixmap: &Pixmap, x: f64, y: f64) -> f64 {
+    let (w, h) = (pixmap.width() as f64, pixmap.height() as f64);
+    let (x, y) = ((x - 0.5).clamp(0.0, w - 1.0), (y - 0.5).clamp(0.0, h - 1.0));
+    let (x0, y0) = (x.floor(), y.floor());
+    let (fx, fy) = (x - x0, y - y0);
+    let g = |xx: f64, yy: f64| super::raster::gray_at(pixmap, xx.min(w - 1.0) as u32, yy.min(h - 1.0) as u32);
+    let top = g(x0, y0) * (1.0 - fx) + g(x0 + 1.0, y0) * fx;
+    let bottom = g(x0, y0 + 1.0) * (1.0 - fx) + g(x0 + 1.0, y0 + 1.0) * fx;
+    top * (1.0 - fy) + bottom * fy
+}
