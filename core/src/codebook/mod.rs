@@ -280,10 +280,10 @@ mod tests {
         // 2x2 "grid" codes, rotation by 90°: positions 0 1 / 3 2 cycle 0→1→2→3→0 (row-major 0,1,2,3
         // = TL TR BL BR; a clockwise turn sends TL→TR→BR→BL).
         let rot = vec![vec![1, 3, 0, 2], vec![3, 2, 1, 0], vec![2, 0, 3, 1]];
-        let cb = Codebook::from_codes(2, 4, vec![vec![1, 0, 0, 0], vec![1, 1, 1, 0]], None, None);
-        // 1000 rotated once is 0100; against 1110 the best is 1100 vs 1110 → 1.
+        let cb = Codebook::from_codes(2, 4, vec![vec![1, 0, 0, 0], vec![0, 1, 0, 1]], None, None);
+        // 0101 turned twice is 1010, one symbol from 1000; unturned they differ in three.
         assert_eq!(cb.min_distance(&rot), Some(1));
-        assert_eq!(cb.min_distance(&[]), Some(2));
+        assert_eq!(cb.min_distance(&[]), Some(3));
         let symmetric = Codebook::from_codes(2, 4, vec![vec![1, 1, 1, 1]], None, None);
         assert_eq!(symmetric.min_distance(&rot), Some(0));
     }

@@ -167,6 +167,15 @@ impl Family {
                 self.cell_size()
             ));
         }
+        for (a, b) in crate::render::readback::Reader::new(self).indistinct_pairs() {
+            out.push(format!(
+                "{}: categories {:?} and {:?} look alike; the detector can only tell categories apart \
+                 by shape or colour",
+                self.name(),
+                self.categories[a].name,
+                self.categories[b].name
+            ));
+        }
         if let Some(d) = self.spec.codebook.min_distance {
             let limit = self.codebook.max_correction() as u32;
             if d > 0 && 2 * limit >= d {

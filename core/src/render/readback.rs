@@ -13,9 +13,11 @@ const K: usize = 6;
 /// Fraction of the cell that is sampled: away from the edges, where anti-aliasing blends cells.
 const SPAN: f64 = 0.8;
 
-/// Category templates of a family: the gray levels at the sample points of a cell of each category.
+/// Category templates of a family: the gray levels at the sample points of a cell of each category,
+/// in each quarter turn (a marker seen turned shows its patterns turned).
 pub struct Reader {
-    templates: Vec<Vec<f64>>,
+    /// (category, quarter turns, samples)
+    templates: Vec<(usize, usize, Vec<f64>)>,
 }
 
 fn sample_offsets() -> impl Iterator<Item = (f64, f64)> {
@@ -31,7 +33,10 @@ impl Reader {
         let templates = family
             .categories()
             .iter()
-            .map(|pattern| {
+            .enumerate()
+            .flat_map(|(c, pattern)| (0..4).map(move |turns| (c, turns, pattern)))
+            .map(|(c, turns, pattern)| {
+                let (s, co) = (turns as f64 * std::f64::consts::FRAC_PI_2).sin_cos();
                 let square = |c| Path(vec![Seg::Move(0.0, 0.0), Seg::Line(c, 0.0), Seg::Line(c, c), Seg::Line(0.0, c), Seg::Close]);
                 let mut items = vec![Item {
                     path: square(CELL_PX),
@@ -39,7 +44,7 @@ impl Reader {
                     stroke: None,
                 }];
                 items.extend(pattern.items.iter().map(|it| Item {
-                    path: it.path.map(|x, y| ((x + 0.5) * CELL_PX, (y + 0.5) * CELL_PX)),
+                    path: it.path.map(|x, y| ((co * x - s * y + 0.5) * CELL_PX, (s * x + co * y + 0.5) * CELL_PX)),
                     fill: it.fill,
                     stroke: it.stroke.map(|(c, w)| (c, w * CELL_PX)),
                 }));
@@ -51,17 +56,37 @@ impl Reader {
                     origin: [0.0; 2],
                 };
                 let pixmap = rasterize(&scene, 1.0).expect("a 60 px cell always renders");
-                sample_offsets()
+                let samples = sample_offsets()
                     .map(|(u, v)| bilinear(&pixmap, (u + 0.5) * CELL_PX, (v + 0.5) * CELL_PX))
-                    .collect()
+                    .collect();
+                (c, turns, samples)
             })
             .collect();
         Self { templates }
     }
 
+    /// Pairs of categories whose cells look alike in some quarter turn (RMS difference under 12
+    /// gray levels): a reader, learned or not, cannot tell them apart.
+    pub fn indistinct_pairs(&self) -> Vec<(usize, usize)> {
+        let mut out = Vec::new();
+        for (i, (a, _, ta)) in self.templates.iter().enumerate() {
+            for (b, _, tb) in &self.templates[i + 1..] {
+                let ms = ta.iter().zip(tb).map(|(x, y)| (x - y) * (x - y)).sum::<f64>() / ta.len() as f64;
+                if a != b && ms < 144.0 && !out.contains(&(*a, *b)) {
+                    out.push((*a, *b));
+                }
+            }
+        }
+        out
+    }
+
     /// Mean gray level (0 black – 255 white) of a category's cell.
     pub fn mean_gray(&self, category: usize) -> f64 {
-        let t = &self.templates[category];
+        let (_, _, t) = self
+            .templates
+            .iter()
+            .find(|(c, _, _)| *c == category)
+            .expect("every category has templates");
         t.iter().sum::<f64>() / t.len() as f64
     }
 
@@ -79,8 +104,7 @@ impl Reader {
                     .collect();
                 self.templates
                     .iter()
-                    .enumerate()
-                    .map(|(c, t)| (t.iter().zip(&samples).map(|(a, b)| (a - b) * (a - b)).sum::<f64>(), c))
+                    .map(|(c, _, t)| (t.iter().zip(&samples).map(|(a, b)| (a - b) * (a - b)).sum::<f64>(), *c))
                     .min_by(|a, b| a.0.total_cmp(&b.0))
                     .map(|(_, c)| c)
             })

@@ -1,0 +1,206 @@
+//! Bad family files give errors that name the file and the field; random input never panics.
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde_json::{json, Value};
+use tagsmith::family::{from_json_str, load_file};
+use tagsmith::render::{marker_scene, SceneOptions};
+
+fn builtin(name: &str) -> Value {
+    let (_, text) = tagsmith::builtin::SOURCES.iter().find(|(n, _)| *n == name).unwrap();
+    serde_json::from_str(text).unwrap()
+}
+
+/// Loads a mutated family from a file and returns the error text.
+fn error_of(family: &Value) -> String {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("bad-family.json");
+    std::fs::write(&path, serde_json::to_string_pretty(family).unwrap()).unwrap();
+    let err = load_file(&path).expect_err("the family must be rejected").to_string();
+    assert!(err.contains("bad-family.json: "), "no file name in: {err}");
+    err
+}
+
+fn assert_error(family: &Value, path: &str, phrase: &str) {
+    let err = error_of(family);
+    let expected = format!("bad-family.json: {path}: ");
+    assert!(err.contains(&expected), "expected field {path:?} in: {err}");
+    assert!(err.contains(phrase), "expected {phrase:?} in: {err}");
+}
+
+#[test]
+fn unknown_category_name() {
+    let mut f = builtin("apriltag-36h11");
+    f["layout"]["legend"]["b"] = json!("blak");
+    assert_error(&f, "layout.legend.b", "unknown category \"blak\"");
+    let mut f = builtin("runetag-plus");
+    f["extra"][2]["category"] = json!("corner-rng");
+    assert_error(&f, "extra[2].category", "unknown category \"corner-rng\"");
+}
+
+#[test]
+fn code_length_does_not_match_the_symbol_keypoints() {
+    let mut f = builtin("apriltag-36h11");
+    f["codebook"]["codes"][3] = json!("21a146bab0");
+    assert_error(&f, "codebook.codes[3]", "36 symbol keypoints");
+    let mut f = builtin("quaternary-6x6");
+    f["codebook"]["codes"][2] = json!("0123");
+    assert_error(&f, "codebook.codes[2]", "4 symbols, but the layout has 36 symbol keypoints");
+}
+
+#[test]
+fn symbol_value_out_of_range() {
+    let mut f = builtin("apriltag-36h11");
+    f["categories"][1]["role"] = json!({"symbol": 2});
+    assert_error(&f, "categories[1].role.symbol", "symbol value 2 is ≥ the number of symbol categories (2)");
+    let mut f = builtin("quaternary-6x6");
+    let mut code: Vec<char> = f["codebook"]["codes"][5].as_str().unwrap().chars().collect();
+    code[7] = '4';
+    f["codebook"]["codes"][5] = json!(code.into_iter().collect::<String>());
+    assert_error(&f, "codebook.codes[5]", "symbol 4 at position 7 is ≥ the number of symbol categories (4)");
+}
+
+#[test]
+fn roi_with_too_few_or_collinear_or_reversed_points() {
+    let mut f = builtin("apriltag-36h11");
+    f["roi"]["points"] = json!([[0, 0], [8, 0], [8, 8]]);
+    assert_error(&f, "roi.points", "at least 4 points");
+    f["roi"]["points"] = json!([[0, 0], [4, 0], [8, 0], [0, 8]]);
+    assert_error(&f, "roi.points", "collinear");
+    f["roi"]["points"] = json!([[0, 0], [0, 8], [8, 8], [8, 0]]);
+    assert_error(&f, "roi.points", "counter-clockwise");
+}
+
+#[test]
+fn grid_over_32_cells() {
+    let mut f = builtin("apriltag-36h11");
+    f["layout"]["size"] = json!(40);
+    assert_error(&f, "layout.size", "40×40 cells is outside 1×1 to 32×32");
+}
+
+#[test]
+fn duplicate_ids_also_under_rotation() {
+    let mut f = builtin("apriltag-36h11");
+    let first = f["codebook"]["codes"][0].clone();
+    f["codebook"]["codes"][9] = first;
+    assert_error(&f, "codebook.codes[9]", "duplicate ID: the same code as ID 0");
+
+    // ID 1 turned a quarter: a 6×6 grid read row-major.
+    let mut f = builtin("apriltag-36h11");
+    let hex = f["codebook"]["codes"][1].as_str().unwrap();
+    let bits: Vec<u8> = (0..36).map(|i| ((u64::from_str_radix(hex, 16).unwrap() >> (35 - i)) & 1) as u8).collect();
+    let turned: Vec<u8> = (0..36).map(|i| bits[(5 - i % 6) * 6 + i / 6]).collect();
+    let value = turned.iter().fold(0u64, |acc, &b| acc << 1 | b as u64);
+    f["codebook"]["codes"][20] = json!(format!("{value:09x}"));
+    assert_error(&f, "codebook.codes[20]", "duplicate ID: the code of ID 1 rotated");
+}
+
+#[test]
+fn typos_and_wrong_types_name_the_field() {
+    let mut f = builtin("apriltag-36h11");
+    f["roi"]["marign"] = json!(0.1);
+    assert_error(&f, "roi.marign", "unknown field `marign`");
+    let mut f = builtin("apriltag-36h11");
+    f["layout"]["size"] = json!("eight");
+    assert_error(&f, "layout.size", "invalid type");
+    let mut f = builtin("apriltag-36h11");
+    f["format"] = json!(2);
+    assert_error(&f, "format", "unsupported format 2");
+    let mut f = builtin("apriltag-36h11");
+    f["categories"][0]["primitives"][0]["fill"] = json!("black");
+    assert_error(&f, "categories[0].primitives[0].fill", "must start with '#'");
+}
+
+#[test]
+fn impossible_ring_layouts_are_rejected() {
+    let mut f = builtin("runetag");
+    f["layout"]["slots"] = json!(200);
+    assert_error(&f, "layout.radii[0]", "overlap");
+    let mut f = builtin("runetag");
+    f["layout"]["radii"] = json!([0.9, 0.8, 1.0]);
+    assert_error(&f, "layout.radii[1]", "radii must increase");
+}
+
+#[test]
+fn malformed_json_gives_line_and_column() {
+    let err = from_json_str("{\"format\": 1, \"name\": ").unwrap_err().to_string();
+    assert!(err.contains("line 1"), "{err}");
+}
+
+/// Mutates one random leaf or member of a JSON value.
+fn mutate(v: &mut Value, rng: &mut ChaCha8Rng) {
+    match v {
+        Value::Object(map) if !map.is_empty() && rng.random_bool(0.8) => {
+            let keys: Vec<String> = map.keys().cloned().collect();
+            let key = &keys[rng.random_range(0..keys.len())];
+            if rng.random_bool(0.1) {
+                map.remove(key);
+            } else {
+                mutate(map.get_mut(key).unwrap(), rng);
+            }
+        }
+        Value::Array(items) if !items.is_empty() && rng.random_bool(0.8) => {
+            let i = rng.random_range(0..items.len());
+            match rng.random_range(0..10) {
+                0 => {
+                    items.remove(i);
+                }
+                1 => {
+                    let copy = items[i].clone();
+                    items.push(copy);
+                }
+                _ => mutate(&mut items[i], rng),
+            }
+        }
+        _ => {
+            *v = match rng.random_range(0..9) {
+                0 => json!(rng.random_range(-5i64..50)),
+                1 => json!(rng.random_range(-1e6..1e6)),
+                2 => json!(0),
+                3 => json!(1e308),
+                4 => json!(""),
+                5 => json!("#zz"),
+                6 => json!(["x", 1]),
+                7 => json!({"symbol": rng.random_range(0..6)}),
+                _ => json!("."),
+            }
+        }
+    }
+}
+
+#[test]
+fn fuzzed_families_never_panic() {
+    let mut rng = ChaCha8Rng::seed_from_u64(2026);
+    let families = ["apriltag-16h5", "apriltag-circle21h7", "quaternary-6x6", "runetag-plus", "topotag-like", "apriltag-xa-36h11"];
+    let mut loaded = 0;
+    for round in 0..1200 {
+        let mut f = builtin(families[round % families.len()]);
+        for _ in 0..rng.random_range(1..4) {
+            mutate(&mut f, &mut rng);
+        }
+        let text = serde_json::to_string(&f).unwrap();
+        // Loading and, when it loads, rendering must return, not panic.
+        if let Ok(family) = from_json_str(&text) {
+            loaded += 1;
+            let _ = marker_scene(&family, 0, SceneOptions::default());
+        }
+    }
+    // Most mutations must still be caught, but some leave a valid family: both paths ran.
+    assert!(loaded > 50 && loaded < 1150, "{loaded} of 1200 mutated families loaded");
+
+    for _ in 0..300 {
+        let len = rng.random_range(0..400);
+        let bytes: Vec<u8> = (0..len).map(|_| rng.random()).collect();
+        let _ = from_json_str(&String::from_utf8_lossy(&bytes));
+    }
+    // Random bytes spliced into a real family file.
+    let text = tagsmith::builtin::SOURCES[0].1.as_bytes().to_vec();
+    for _ in 0..300 {
+        let mut t = text.clone();
+        for _ in 0..rng.random_range(1..6) {
+            let i = rng.random_range(0..t.len());
+            t[i] = rng.random();
+        }
+        let _ = from_json_str(&String::from_utf8_lossy(&t));
+    }
+}
