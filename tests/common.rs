@@ -1,0 +1,65 @@
+//! Helpers shared by the end-to-end tests: run the `tagsmith` binary in a temporary folder.
+
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+pub struct Run {
+    pub code: i32,
+    pub stdout: String,
+    pub stderr: String,
+}
+
+impl Run {
+    pub fn ok(&self) -> &Self {
+        assert_eq!(self.code, 0, "stdout: {}\nstderr: {}", self.stdout, self.stderr);
+        self
+    }
+}
+
+pub fn tagsmith(dir: &Path, args: &[&str]) -> Run {
+    let Output { status, stdout, stderr } = Command::new(env!("CARGO_BIN_EXE_tagsmith"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("the tagsmith binary runs");
+    Run {
+        code: status.code().unwrap_or(-1),
+        stdout: String::from_utf8_lossy(&stdout).into(),
+        stderr: String::from_utf8_lossy(&stderr).into(),
+    }
+}
+
+pub fn workspace() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// Bounding box (min x, min y, max x, max y) of the points of an SVG path's `d` of M/L/Z commands.
+pub fn bbox(d: &str) -> [f64; 4] {
+    let nums: Vec<f64> = d
+        .split(|c: char| c.is_ascii_alphabetic() || c == ' ')
+        .filter(|s| !s.is_empty())
+        .map(|s| s.parse().unwrap())
+        .collect();
+    let mut b = [f64::MAX, f64::MAX, f64::MIN, f64::MIN];
+    for p in nums.chunks(2) {
+        b = [b[0].min(p[0]), b[1].min(p[1]), b[2].max(p[0]), b[3].max(p[1])];
+    }
+    b
+}
+
+/// The `d` of every black-filled path inside the element that starts at `start` in `svg`.
+pub fn black_paths_after<'a>(svg: &'a str, start: &str) -> Vec<&'a str> {
+    let from = svg.find(start).unwrap_or_else(|| panic!("{start} not in the SVG"));
+    let group = &svg[from..from + svg[from..].find("</g>").unwrap()];
+    group
+        .split("<path ")
+        .skip(1)
+        .filter(|p| p.contains("fill=\"#000000\""))
+        .map(|p| {
+            let s = p.find("d=\"").unwrap() + 3;
+            &p[s..s + p[s..].find('"').unwrap()]
+        })
+        .collect()
+}
