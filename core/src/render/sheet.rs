@@ -1,7 +1,7 @@
 //! Printable sheets: markers at an exact physical size laid out on pages, with labels, cut marks
 //! and a 100 mm scale bar to check that the print came out at 100 %.
 
-use super::scene::{marker_scene, MarkerScene, RenderError, SceneOptions};
+use super::scene::{marker_scene, RenderError, SceneOptions};
 use super::svg::{marker_group, num};
 use crate::family::Family;
 use svg::node::element::{Group, Line, Rectangle, Text};
@@ -212,11 +212,12 @@ pub fn layout_sheet(family: &Family, params: &SheetParams) -> Result<Sheet, Rend
                 g = g.add(label(family, id, params.marker_side_mm, x, y + scene.height_mm, tile_w));
             }
             if cut_marks {
-                g = g.add(cut_mark_group(&scene, x, y, params.spacing_mm));
+                // Around the marker and its label, so a cut-out marker keeps its ID.
+                g = g.add(cut_mark_group(tile_w, tile_h, x, y, params.spacing_mm));
             }
             doc = doc.add(g);
         }
-        doc = doc.add(scale_bar(params.margin_mm, page.height_mm - params.margin_mm - 3.0, usable_w));
+        doc = doc.add(scale_bar(params.margin_mm, page.height_mm - params.margin_mm - 6.0, usable_w));
         pages.push(doc.to_string());
     }
     Ok(Sheet {
@@ -268,11 +269,10 @@ fn label(family: &Family, id: usize, side: f64, x: f64, y: f64, width: f64) -> T
         .set("class", "label")
 }
 
-/// Corner marks in the gap around a marker's quiet zone, never over it.
-fn cut_mark_group(scene: &MarkerScene, x: f64, y: f64, spacing: f64) -> Group {
+/// Corner marks in the gap around a tile (marker, quiet zone and label), never over it.
+fn cut_mark_group(w: f64, h: f64, x: f64, y: f64, spacing: f64) -> Group {
     let gap = 0.5;
     let len = (spacing / 2.0 - gap).clamp(0.5, 4.0);
-    let (w, h) = (scene.width_mm, scene.height_mm);
     let mut g = Group::new().set("class", "cut-marks").set("stroke", "#808080").set("stroke-width", "0.15");
     for (cx, cy, sx, sy) in [(x, y, -1.0, -1.0), (x + w, y, 1.0, -1.0), (x + w, y + h, 1.0, 1.0), (x, y + h, -1.0, 1.0)] {
         // One horizontal and one vertical tick, each continuing a side of the marker outward.
@@ -305,12 +305,15 @@ fn scale_bar(x: f64, y: f64, usable_w: f64) -> Group {
         let tx = x + i as f64 * 10.0;
         ticks_group = ticks_group.add(line(tx, y - 3.0, tx, y - 1.0));
     }
-    g = g.add(ticks_group).add(text(
-        x + length + 2.0,
-        y,
-        2.5,
-        format!("{length:.0} mm — print at 100 % (no \"fit to page\") and check this bar measures {length:.0} mm"),
-    ));
+    g = g
+        .add(ticks_group)
+        .add(text(x + length + 2.0, y, 2.5, format!("{length:.0} mm")))
+        .add(text(
+            x,
+            y + 4.0,
+            2.3,
+            format!("Print at 100 % (no \"fit to page\") and check that this bar measures {length:.0} mm."),
+        ));
     g
 }
 
