@@ -30,7 +30,11 @@ fn families_lists_every_builtin_with_stats() {
     let run = tagsmith(dir.path(), &["families"]);
     run.ok();
     assert_eq!(run.stdout.lines().count(), 16, "{}", run.stdout);
-    let line = run.stdout.lines().find(|l| l.starts_with("apriltag-36h11 ")).unwrap();
+    let line = run
+        .stdout
+        .lines()
+        .find(|l| l.starts_with("apriltag-36h11 "))
+        .unwrap();
     let cols: Vec<&str> = line.split_whitespace().collect();
     assert_eq!(&cols[1..6], ["grid", "64", "2", "587", "11"]);
 }
@@ -38,32 +42,80 @@ fn families_lists_every_builtin_with_stats() {
 #[test]
 fn render_svg_has_the_requested_physical_size() {
     let dir = tempfile::tempdir().unwrap();
-    tagsmith(dir.path(), &["render", "aruco-6x6_250", "--id", "23", "--size-mm", "37.5", "-o", "m.svg"]).ok();
+    tagsmith(
+        dir.path(),
+        &[
+            "render",
+            "aruco-6x6_250",
+            "--id",
+            "23",
+            "--size-mm",
+            "37.5",
+            "-o",
+            "m.svg",
+        ],
+    )
+    .ok();
     let svg = std::fs::read_to_string(dir.path().join("m.svg")).unwrap();
     // 8 cells of 37.5/8 mm plus one quiet-zone cell on each side.
     assert!(svg.contains("width=\"46.875mm\""), "{svg}");
     let black = black_paths_after(&svg, "<g class=\"marker\"");
-    assert_eq!(black.len(), 1, "cells of one colour are merged into one path");
+    assert_eq!(
+        black.len(),
+        1,
+        "cells of one colour are merged into one path"
+    );
     let b = bbox(black[0]);
-    assert!((b[2] - b[0] - 37.5).abs() < 0.01 && (b[3] - b[1] - 37.5).abs() < 0.01, "{b:?}");
+    assert!(
+        (b[2] - b[0] - 37.5).abs() < 0.01 && (b[3] - b[1] - 37.5).abs() < 0.01,
+        "{b:?}"
+    );
 }
 
 #[test]
 fn render_png_at_the_requested_width_and_reject_bad_requests() {
     let dir = tempfile::tempdir().unwrap();
-    tagsmith(dir.path(), &["render", "runetag-plus", "--id", "7", "--px", "321", "-o", "m.png"]).ok();
+    tagsmith(
+        dir.path(),
+        &[
+            "render",
+            "runetag-plus",
+            "--id",
+            "7",
+            "--px",
+            "321",
+            "-o",
+            "m.png",
+        ],
+    )
+    .ok();
     let png = std::fs::read(dir.path().join("m.png")).unwrap();
     assert_eq!(&png[1..4], b"PNG");
     assert_eq!(u32::from_be_bytes(png[16..20].try_into().unwrap()), 321);
 
-    let run = tagsmith(dir.path(), &["render", "apriltag-16h5", "--id", "30", "-o", "x.svg"]);
+    let run = tagsmith(
+        dir.path(),
+        &["render", "apriltag-16h5", "--id", "30", "-o", "x.svg"],
+    );
     assert_eq!(run.code, 2);
-    assert!(run.stderr.contains("ID 30 does not exist: apriltag-16h5 has IDs 0 to 29"), "{}", run.stderr);
+    assert!(
+        run.stderr
+            .contains("ID 30 does not exist: apriltag-16h5 has IDs 0 to 29"),
+        "{}",
+        run.stderr
+    );
     assert!(!dir.path().join("x.svg").exists());
 
-    let run = tagsmith(dir.path(), &["render", "no-such-family", "--id", "0", "-o", "x.svg"]);
+    let run = tagsmith(
+        dir.path(),
+        &["render", "no-such-family", "--id", "0", "-o", "x.svg"],
+    );
     assert_eq!(run.code, 2);
-    assert!(run.stderr.contains("built-in families: apriltag-16h5"), "{}", run.stderr);
+    assert!(
+        run.stderr.contains("built-in families: apriltag-16h5"),
+        "{}",
+        run.stderr
+    );
 }
 
 #[test]
@@ -76,24 +128,53 @@ fn a_bad_family_file_is_rejected_naming_file_and_field_and_nothing_is_written() 
 
     let run = tagsmith(dir.path(), &["validate", "mine.json"]);
     assert_eq!(run.code, 2);
-    assert!(run.stderr.contains("mine.json: layout.legend.b: unknown category \"blakc\""), "{}", run.stderr);
+    assert!(
+        run.stderr
+            .contains("mine.json: layout.legend.b: unknown category \"blakc\""),
+        "{}",
+        run.stderr
+    );
 
-    let run = tagsmith(dir.path(), &["render", "mine.json", "--id", "0", "-o", "out.svg"]);
+    let run = tagsmith(
+        dir.path(),
+        &["render", "mine.json", "--id", "0", "-o", "out.svg"],
+    );
     assert_eq!(run.code, 2);
-    assert_eq!(std::fs::read_to_string(dir.path().join("out.svg")).unwrap(), "previous content");
+    assert_eq!(
+        std::fs::read_to_string(dir.path().join("out.svg")).unwrap(),
+        "previous content"
+    );
 
     std::fs::write(dir.path().join("ok.json"), good).unwrap();
     let run = tagsmith(dir.path(), &["validate", "ok.json"]);
     run.ok();
-    assert!(run.stdout.contains("valid — 36 keypoints"), "{}", run.stdout);
+    assert!(
+        run.stdout.contains("valid — 36 keypoints"),
+        "{}",
+        run.stdout
+    );
 }
 
 #[test]
 fn an_unwritable_output_fails_without_leaving_a_partial_file() {
     let dir = tempfile::tempdir().unwrap();
-    let run = tagsmith(dir.path(), &["render", "apriltag-36h11", "--id", "1", "-o", "missing/dir/out.svg"]);
+    let run = tagsmith(
+        dir.path(),
+        &[
+            "render",
+            "apriltag-36h11",
+            "--id",
+            "1",
+            "-o",
+            "missing/dir/out.svg",
+        ],
+    );
     assert_eq!(run.code, 1);
-    assert!(run.stderr.contains("cannot write missing/dir/out.svg"), "{}", run.stderr);
+    assert!(
+        run.stderr.contains("cannot write missing/dir/out.svg"),
+        "{}",
+        run.stderr
+    );
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
 }
 
@@ -102,18 +183,46 @@ fn codebook_stats_computes_distance_and_correction_limit() {
     let dir = tempfile::tempdir().unwrap();
     let run = tagsmith(dir.path(), &["codebook", "stats", "apriltag-36h11"]);
     run.ok();
-    for expected in ["codes:             587", "code length:       36", "q (symbols):       2", "minimum distance:  11 (computed)", "correction limit:  5"] {
-        assert!(run.stdout.contains(expected), "{expected:?} in {}", run.stdout);
+    for expected in [
+        "codes:             587",
+        "code length:       36",
+        "q (symbols):       2",
+        "minimum distance:  11 (computed)",
+        "correction limit:  5",
+    ] {
+        assert!(
+            run.stdout.contains(expected),
+            "{expected:?} in {}",
+            run.stdout
+        );
     }
     let run = tagsmith(dir.path(), &["codebook", "stats", "quaternary-6x6"]);
     run.ok();
-    assert!(run.stdout.contains("q (symbols):       4") && run.stdout.contains("minimum distance:  14"), "{}", run.stdout);
+    assert!(
+        run.stdout.contains("q (symbols):       4") && run.stdout.contains("minimum distance:  14"),
+        "{}",
+        run.stdout
+    );
 }
 
 #[test]
 fn codebook_generate_writes_a_valid_family_that_is_deterministic() {
     let dir = tempfile::tempdir().unwrap();
-    let args = ["codebook", "generate", "aruco-5x5_100", "--min-distance", "7", "--count", "40", "--seed", "4", "--max-candidates", "2000000", "--name", "my-5x5"];
+    let args = [
+        "codebook",
+        "generate",
+        "aruco-5x5_100",
+        "--min-distance",
+        "7",
+        "--count",
+        "40",
+        "--seed",
+        "4",
+        "--max-candidates",
+        "2000000",
+        "--name",
+        "my-5x5",
+    ];
     let mut a = args.to_vec();
     a.extend(["-o", "a.json"]);
     let run = tagsmith(dir.path(), &a);
@@ -122,7 +231,10 @@ fn codebook_generate_writes_a_valid_family_that_is_deterministic() {
     let mut b = args.to_vec();
     b.extend(["-o", "b.json"]);
     tagsmith(dir.path(), &b).ok();
-    let (fa, fb) = (std::fs::read(dir.path().join("a.json")).unwrap(), std::fs::read(dir.path().join("b.json")).unwrap());
+    let (fa, fb) = (
+        std::fs::read(dir.path().join("a.json")).unwrap(),
+        std::fs::read(dir.path().join("b.json")).unwrap(),
+    );
     assert_eq!(fa, fb);
     let run = tagsmith(dir.path(), &["validate", "a.json"]);
     run.ok();
@@ -130,27 +242,54 @@ fn codebook_generate_writes_a_valid_family_that_is_deterministic() {
     assert_eq!(family.name(), "my-5x5");
     assert!(family.spec().codebook.min_distance.unwrap() >= 7);
     // It prints like any family.
-    tagsmith(dir.path(), &["render", "a.json", "--id", "39", "-o", "m.svg"]).ok();
+    tagsmith(
+        dir.path(),
+        &["render", "a.json", "--id", "39", "-o", "m.svg"],
+    )
+    .ok();
 }
 
 #[test]
 fn export_opencv_writes_a_readable_dictionary() {
     let dir = tempfile::tempdir().unwrap();
-    tagsmith(dir.path(), &["export-opencv", "apriltag-36h11", "-o", "dict.yml"]).ok();
+    tagsmith(
+        dir.path(),
+        &["export-opencv", "apriltag-36h11", "-o", "dict.yml"],
+    )
+    .ok();
     let yml = std::fs::read_to_string(dir.path().join("dict.yml")).unwrap();
     let lines: Vec<&str> = yml.lines().collect();
-    assert_eq!(&lines[..5], ["%YAML:1.0", "---", "nmarkers: 587", "markersize: 6", "maxCorrectionBits: 5"]);
+    assert_eq!(
+        &lines[..5],
+        [
+            "%YAML:1.0",
+            "---",
+            "nmarkers: 587",
+            "markersize: 6",
+            "maxCorrectionBits: 5"
+        ]
+    );
     assert_eq!(lines.len(), 5 + 587);
     let family = tagsmith::builtin::get("apriltag-36h11").unwrap().unwrap();
     for (id, line) in lines[5..].iter().enumerate() {
-        let bits: String = family.codebook().code(id).unwrap().iter().map(|b| char::from(b'0' + b)).collect();
+        let bits: String = family
+            .codebook()
+            .code(id)
+            .unwrap()
+            .iter()
+            .map(|b| char::from(b'0' + b))
+            .collect();
         assert_eq!(*line, format!("marker_{id}: \"{bits}\""));
     }
     // OpenCV reads black and white cells only.
     for family in ["apriltag-xo-36h11", "runetag", "quaternary-6x6"] {
         let run = tagsmith(dir.path(), &["export-opencv", family, "-o", "no.yml"]);
         assert_eq!(run.code, 2, "{family}");
-        assert!(run.stderr.contains("cannot be read by OpenCV"), "{}", run.stderr);
+        assert!(
+            run.stderr.contains("cannot be read by OpenCV"),
+            "{}",
+            run.stderr
+        );
     }
     assert!(!dir.path().join("no.yml").exists());
 }
@@ -160,7 +299,10 @@ fn schema_command_prints_the_committed_schema() {
     let dir = tempfile::tempdir().unwrap();
     let run = tagsmith(dir.path(), &["schema"]);
     run.ok();
-    assert_eq!(run.stdout, std::fs::read_to_string(workspace().join("families/schema.json")).unwrap());
+    assert_eq!(
+        run.stdout,
+        std::fs::read_to_string(workspace().join("families/schema.json")).unwrap()
+    );
 }
 
 #[test]

@@ -13,13 +13,21 @@ pub struct Run {
 
 impl Run {
     pub fn ok(&self) -> &Self {
-        assert_eq!(self.code, 0, "stdout: {}\nstderr: {}", self.stdout, self.stderr);
+        assert_eq!(
+            self.code, 0,
+            "stdout: {}\nstderr: {}",
+            self.stdout, self.stderr
+        );
         self
     }
 }
 
 pub fn tagsmith(dir: &Path, args: &[&str]) -> Run {
-    let Output { status, stdout, stderr } = Command::new(env!("CARGO_BIN_EXE_tagsmith"))
+    let Output {
+        status,
+        stdout,
+        stderr,
+    } = Command::new(env!("CARGO_BIN_EXE_tagsmith"))
         .args(args)
         .current_dir(dir)
         .output()
@@ -44,14 +52,21 @@ pub fn bbox(d: &str) -> [f64; 4] {
         .collect();
     let mut b = [f64::MAX, f64::MAX, f64::MIN, f64::MIN];
     for p in nums.chunks(2) {
-        b = [b[0].min(p[0]), b[1].min(p[1]), b[2].max(p[0]), b[3].max(p[1])];
+        b = [
+            b[0].min(p[0]),
+            b[1].min(p[1]),
+            b[2].max(p[0]),
+            b[3].max(p[1]),
+        ];
     }
     b
 }
 
 /// The `d` of every black-filled path inside the element that starts at `start` in `svg`.
 pub fn black_paths_after<'a>(svg: &'a str, start: &str) -> Vec<&'a str> {
-    let from = svg.find(start).unwrap_or_else(|| panic!("{start} not in the SVG"));
+    let from = svg
+        .find(start)
+        .unwrap_or_else(|| panic!("{start} not in the SVG"));
     let group = &svg[from..from + svg[from..].find("</g>").unwrap()];
     group
         .split("<path ")

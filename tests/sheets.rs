@@ -15,7 +15,10 @@ fn media_boxes(pdf: &[u8]) -> Vec<[f64; 4]> {
     text.match_indices("/MediaBox [")
         .map(|(i, m)| {
             let rest = &text[i + m.len()..];
-            let nums: Vec<f64> = rest[..rest.find(']').unwrap()].split_whitespace().map(|n| n.parse().unwrap()).collect();
+            let nums: Vec<f64> = rest[..rest.find(']').unwrap()]
+                .split_whitespace()
+                .map(|n| n.parse().unwrap())
+                .collect();
             [nums[0], nums[1], nums[2], nums[3]]
         })
         .collect()
@@ -24,16 +27,39 @@ fn media_boxes(pdf: &[u8]) -> Vec<[f64; 4]> {
 #[test]
 fn pdf_sheet_is_a4_to_a_hundredth_of_a_point_with_one_page_per_twelve_markers() {
     let dir = tempfile::tempdir().unwrap();
-    let run = tagsmith(dir.path(), &["sheet", "apriltag-36h11", "--ids", "0-47", "--page", "a4", "--size-mm", "40", "--labels", "--cut-marks", "-o", "sheet.pdf"]);
+    let run = tagsmith(
+        dir.path(),
+        &[
+            "sheet",
+            "apriltag-36h11",
+            "--ids",
+            "0-47",
+            "--page",
+            "a4",
+            "--size-mm",
+            "40",
+            "--labels",
+            "--cut-marks",
+            "-o",
+            "sheet.pdf",
+        ],
+    );
     run.ok();
-    assert!(run.stdout.contains("48 markers, 12 per page, 4 page(s)"), "{}", run.stdout);
+    assert!(
+        run.stdout.contains("48 markers, 12 per page, 4 page(s)"),
+        "{}",
+        run.stdout
+    );
     let pdf = std::fs::read(dir.path().join("sheet.pdf")).unwrap();
     assert!(pdf.starts_with(b"%PDF-"));
     assert_eq!(pdf_pages(&pdf), 4);
     let boxes = media_boxes(&pdf);
     assert_eq!(boxes.len(), 4);
     for b in boxes {
-        assert!((b[2] - A4_PT.0).abs() < 0.01 && (b[3] - A4_PT.1).abs() < 0.01, "{b:?}");
+        assert!(
+            (b[2] - A4_PT.0).abs() < 0.01 && (b[3] - A4_PT.1).abs() < 0.01,
+            "{b:?}"
+        );
     }
     // The page's SVG is drawn onto the page at exactly the page size (1 mm = 72/25.4 pt).
     assert!(String::from_utf8_lossy(&pdf).contains("595.2756 0 0 841.8898 0 0 cm"));
@@ -42,13 +68,35 @@ fn pdf_sheet_is_a4_to_a_hundredth_of_a_point_with_one_page_per_twelve_markers() 
 #[test]
 fn svg_sheet_markers_measure_the_requested_side_and_carry_size_scale_and_labels() {
     let dir = tempfile::tempdir().unwrap();
-    tagsmith(dir.path(), &["sheet", "apriltag-36h11", "--ids", "3,5,8-9", "--size-mm", "40", "--labels", "--cut-marks", "-o", "sheet.svg"]).ok();
+    tagsmith(
+        dir.path(),
+        &[
+            "sheet",
+            "apriltag-36h11",
+            "--ids",
+            "3,5,8-9",
+            "--size-mm",
+            "40",
+            "--labels",
+            "--cut-marks",
+            "-o",
+            "sheet.svg",
+        ],
+    )
+    .ok();
     let svg = std::fs::read_to_string(dir.path().join("sheet.svg")).unwrap();
-    assert!(svg.contains("width=\"210mm\"") && svg.contains("height=\"297mm\"") && svg.contains("viewBox=\"0 0 210 297\""));
+    assert!(
+        svg.contains("width=\"210mm\"")
+            && svg.contains("height=\"297mm\"")
+            && svg.contains("viewBox=\"0 0 210 297\"")
+    );
     for id in [3, 5, 8, 9] {
         let black = black_paths_after(&svg, &format!("id=\"marker-{id}\""));
         let b = bbox(black[0]);
-        assert!((b[2] - b[0] - 40.0).abs() < 0.01 && (b[3] - b[1] - 40.0).abs() < 0.01, "ID {id}: {b:?}");
+        assert!(
+            (b[2] - b[0] - 40.0).abs() < 0.01 && (b[3] - b[1] - 40.0).abs() < 0.01,
+            "ID {id}: {b:?}"
+        );
         assert!(svg.contains(&format!("apriltag-36h11 · ID {id} · 40.0 mm")));
     }
     assert!(svg.contains("tag size 40.0 mm, corner to corner"));
@@ -61,23 +109,62 @@ fn svg_sheet_markers_measure_the_requested_side_and_carry_size_scale_and_labels(
 #[test]
 fn many_svg_pages_are_numbered_files() {
     let dir = tempfile::tempdir().unwrap();
-    let run = tagsmith(dir.path(), &["sheet", "aruco-4x4_50", "--ids", "0-49", "--size-mm", "50", "-o", "p.svg"]);
+    let run = tagsmith(
+        dir.path(),
+        &[
+            "sheet",
+            "aruco-4x4_50",
+            "--ids",
+            "0-49",
+            "--size-mm",
+            "50",
+            "-o",
+            "p.svg",
+        ],
+    );
     run.ok();
-    let pages: Vec<_> = (1..).map(|i| dir.path().join(format!("p-{i}.svg"))).take_while(|p| p.exists()).collect();
+    let pages: Vec<_> = (1..)
+        .map(|i| dir.path().join(format!("p-{i}.svg")))
+        .take_while(|p| p.exists())
+        .collect();
     assert!(pages.len() >= 5, "{}", run.stdout);
-    assert!(std::fs::read_to_string(&pages[0]).unwrap().contains("page 1 / "));
+    assert!(std::fs::read_to_string(&pages[0])
+        .unwrap()
+        .contains("page 1 / "));
 }
 
 #[test]
 fn a_sheet_that_cannot_fit_one_marker_or_names_a_missing_id_is_refused() {
     let dir = tempfile::tempdir().unwrap();
-    let run = tagsmith(dir.path(), &["sheet", "apriltag-36h11", "--ids", "0", "--size-mm", "400", "-o", "s.pdf"]);
+    let run = tagsmith(
+        dir.path(),
+        &[
+            "sheet",
+            "apriltag-36h11",
+            "--ids",
+            "0",
+            "--size-mm",
+            "400",
+            "-o",
+            "s.pdf",
+        ],
+    );
     assert_eq!(run.code, 2);
     assert!(run.stderr.contains("does not fit"), "{}", run.stderr);
-    let run = tagsmith(dir.path(), &["sheet", "apriltag-36h11", "--ids", "585-590", "-o", "s.pdf"]);
+    let run = tagsmith(
+        dir.path(),
+        &["sheet", "apriltag-36h11", "--ids", "585-590", "-o", "s.pdf"],
+    );
     assert_eq!(run.code, 2);
-    assert!(run.stderr.contains("ID 587 does not exist"), "{}", run.stderr);
-    let run = tagsmith(dir.path(), &["sheet", "apriltag-36h11", "--ids", "9-3", "-o", "s.pdf"]);
+    assert!(
+        run.stderr.contains("ID 587 does not exist"),
+        "{}",
+        run.stderr
+    );
+    let run = tagsmith(
+        dir.path(),
+        &["sheet", "apriltag-36h11", "--ids", "9-3", "-o", "s.pdf"],
+    );
     assert_eq!(run.code, 2);
     assert!(!dir.path().join("s.pdf").exists());
 }
@@ -85,18 +172,61 @@ fn a_sheet_that_cannot_fit_one_marker_or_names_a_missing_id_is_refused() {
 #[test]
 fn a_thin_quiet_zone_is_warned_about() {
     let dir = tempfile::tempdir().unwrap();
-    let run = tagsmith(dir.path(), &["sheet", "apriltag-36h11", "--ids", "0-3", "--quiet-zone", "0.5", "-o", "s.svg"]);
+    let run = tagsmith(
+        dir.path(),
+        &[
+            "sheet",
+            "apriltag-36h11",
+            "--ids",
+            "0-3",
+            "--quiet-zone",
+            "0.5",
+            "-o",
+            "s.svg",
+        ],
+    );
     run.ok();
-    assert!(run.stderr.contains("thinner than one cell"), "{}", run.stderr);
+    assert!(
+        run.stderr.contains("thinner than one cell"),
+        "{}",
+        run.stderr
+    );
 }
 
 #[test]
 fn letter_and_custom_pages() {
     let dir = tempfile::tempdir().unwrap();
-    tagsmith(dir.path(), &["sheet", "runetag", "--ids", "0-3", "--page", "letter", "-o", "l.pdf"]).ok();
+    tagsmith(
+        dir.path(),
+        &[
+            "sheet", "runetag", "--ids", "0-3", "--page", "letter", "-o", "l.pdf",
+        ],
+    )
+    .ok();
     let b = media_boxes(&std::fs::read(dir.path().join("l.pdf")).unwrap())[0];
-    assert!((b[2] - 612.0).abs() < 0.01 && (b[3] - 792.0).abs() < 0.01, "{b:?}");
-    tagsmith(dir.path(), &["sheet", "topotag-like", "--ids", "0-1", "--page", "150x100", "--size-mm", "30", "-o", "c.pdf"]).ok();
+    assert!(
+        (b[2] - 612.0).abs() < 0.01 && (b[3] - 792.0).abs() < 0.01,
+        "{b:?}"
+    );
+    tagsmith(
+        dir.path(),
+        &[
+            "sheet",
+            "topotag-like",
+            "--ids",
+            "0-1",
+            "--page",
+            "150x100",
+            "--size-mm",
+            "30",
+            "-o",
+            "c.pdf",
+        ],
+    )
+    .ok();
     let b = media_boxes(&std::fs::read(dir.path().join("c.pdf")).unwrap())[0];
-    assert!((b[2] - 150.0 * 72.0 / 25.4).abs() < 0.01 && (b[3] - 100.0 * 72.0 / 25.4).abs() < 0.01, "{b:?}");
+    assert!(
+        (b[2] - 150.0 * 72.0 / 25.4).abs() < 0.01 && (b[3] - 100.0 * 72.0 / 25.4).abs() < 0.01,
+        "{b:?}"
+    );
 }

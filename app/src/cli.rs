@@ -12,7 +12,11 @@ use tagsmith::render::sheet::{layout_sheet, parse_ids, PageSize, SheetParams};
 use tagsmith::render::{marker_scene, pdf, raster, svg, SceneOptions};
 
 #[derive(Parser, Debug)]
-#[command(name = "tagsmith", version, about = "Design, render and print fiducial-marker families")]
+#[command(
+    name = "tagsmith",
+    version,
+    about = "Design, render and print fiducial-marker families"
+)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Option<Command>,
@@ -230,10 +234,17 @@ fn extension(path: &Path) -> String {
 }
 
 fn families() -> Result<()> {
-    println!("{:<24} {:<6} {:>9} {:>3} {:>6} {:>5}  title", "name", "layout", "keypoints", "q", "codes", "d_min");
+    println!(
+        "{:<24} {:<6} {:>9} {:>3} {:>6} {:>5}  title",
+        "name", "layout", "keypoints", "q", "codes", "d_min"
+    );
     for name in tagsmith::builtin::names() {
         let f = load_family(name)?;
-        let d = f.spec().codebook.min_distance.map_or("?".into(), |d| d.to_string());
+        let d = f
+            .spec()
+            .codebook
+            .min_distance
+            .map_or("?".into(), |d| d.to_string());
         println!(
             "{:<24} {:<6} {:>9} {:>3} {:>6} {:>5}  {}",
             name,
@@ -266,7 +277,12 @@ fn render(a: RenderArgs) -> Result<()> {
             let pixmap = raster::rasterize_width(&scene, a.px.unwrap_or(512)).map_err(bad)?;
             raster::encode_png(&pixmap).map_err(failed)?
         }
-        other => return Err(bad(anyhow!("output {:?}: use .svg or .png, not {other:?}", a.output))),
+        other => {
+            return Err(bad(anyhow!(
+                "output {:?}: use .svg or .png, not {other:?}",
+                a.output
+            )))
+        }
     };
     for w in family.warnings() {
         eprintln!("warning: {w}");
@@ -316,7 +332,11 @@ fn sheet(a: SheetArgs) -> Result<()> {
             vec![a.output.clone()]
         }
         "svg" => {
-            let stem = a.output.file_stem().and_then(|s| s.to_str()).unwrap_or("sheet");
+            let stem = a
+                .output
+                .file_stem()
+                .and_then(|s| s.to_str())
+                .unwrap_or("sheet");
             let mut out = Vec::new();
             for (i, page) in sheet.pages.iter().enumerate() {
                 let path = a.output.with_file_name(format!("{stem}-{}.svg", i + 1));
@@ -325,7 +345,12 @@ fn sheet(a: SheetArgs) -> Result<()> {
             }
             out
         }
-        other => return Err(bad(anyhow!("output {:?}: use .pdf or .svg, not {other:?}", a.output))),
+        other => {
+            return Err(bad(anyhow!(
+                "output {:?}: use .pdf or .svg, not {other:?}",
+                a.output
+            )))
+        }
     };
     let names: Vec<String> = written.iter().map(|p| p.display().to_string()).collect();
     println!(
@@ -355,14 +380,22 @@ fn stats(name: &str) -> Result<()> {
     println!("codes:             {}", cb.len());
     println!("code length:       {}", cb.code_len());
     println!("q (symbols):       {}", cb.q());
-    println!("rotations:         {} checked for distance ({} admitted by the layout)", rotations.len() + 1, family.rotations().len());
+    println!(
+        "rotations:         {} checked for distance ({} admitted by the layout)",
+        rotations.len() + 1,
+        family.rotations().len()
+    );
     match d {
         Some(d) => {
             println!("minimum distance:  {d} (computed)");
             println!(
                 "correction limit:  {}{}",
                 cb.max_correction(),
-                if family.spec().codebook.max_correction.is_none() { " (default ⌊(d_min − 1)/2⌋)" } else { " (set in the file)" }
+                if family.spec().codebook.max_correction.is_none() {
+                    " (default ⌊(d_min − 1)/2⌋)"
+                } else {
+                    " (set in the file)"
+                }
             );
         }
         None => println!("minimum distance:  undefined (a single code)"),
@@ -379,7 +412,11 @@ fn generate(a: GenerateArgs) -> Result<()> {
     params.min_transitions = a.min_transitions;
     params.reject_self_symmetric = a.reject_self_symmetric;
     params.start_with_zero = a.start_with_zero;
-    params.order = if a.lexicographic { Order::Lexicographic } else { Order::Random };
+    params.order = if a.lexicographic {
+        Order::Lexicographic
+    } else {
+        Order::Random
+    };
     let bar = ProgressBar::new(params.max_candidates).with_style(
         ProgressStyle::with_template("{bar:30} {pos}/{len} candidates  {msg}  [{elapsed_precise}]")
             .expect("a valid template"),
@@ -391,7 +428,9 @@ fn generate(a: GenerateArgs) -> Result<()> {
     .map_err(|e| bad(anyhow!(e)))?;
     bar.finish_and_clear();
     let mut spec = family.spec().clone();
-    spec.name = a.name.unwrap_or_else(|| format!("{}-generated", family.name()));
+    spec.name = a
+        .name
+        .unwrap_or_else(|| format!("{}-generated", family.name()));
     spec.codebook = report.codebook.to_spec(
         report.achieved_min_distance,
         &format!(
@@ -410,7 +449,9 @@ fn generate(a: GenerateArgs) -> Result<()> {
     println!(
         "{} codes, minimum distance {} (asked {}), {} candidates in {:.2} s ({}); wrote {}",
         report.codebook.len(),
-        report.achieved_min_distance.map_or("-".into(), |d| d.to_string()),
+        report
+            .achieved_min_distance
+            .map_or("-".into(), |d| d.to_string()),
         params.min_distance,
         report.candidates_tried,
         report.seconds,

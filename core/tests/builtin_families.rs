@@ -16,12 +16,18 @@ fn shared() -> PathBuf {
 
 fn all() -> Vec<Family> {
     tagsmith::builtin::names()
-        .map(|n| tagsmith::builtin::get(n).unwrap().unwrap_or_else(|e| panic!("{e}")))
+        .map(|n| {
+            tagsmith::builtin::get(n)
+                .unwrap()
+                .unwrap_or_else(|e| panic!("{e}"))
+        })
         .collect()
 }
 
 fn ambiguous(f: &Family) -> Vec<Vec<usize>> {
-    f.ambiguous_rotations().filter_map(|r| r.code_perm.clone()).collect()
+    f.ambiguous_rotations()
+        .filter_map(|r| r.code_perm.clone())
+        .collect()
 }
 
 #[test]
@@ -41,7 +47,11 @@ fn every_id_of_every_family_renders_to_svg_and_png() {
         (0..f.codebook().len()).into_par_iter().for_each(|id| {
             let scene = marker_scene(&f, id, SceneOptions::default()).unwrap();
             let svg = svg::marker_svg(&scene);
-            assert!(svg.contains("width=\"") && svg.contains("mm\""), "{} {id}", f.name());
+            assert!(
+                svg.contains("width=\"") && svg.contains("mm\""),
+                "{} {id}",
+                f.name()
+            );
             let png = raster::encode_png(&raster::rasterize_width(&scene, 40).unwrap()).unwrap();
             assert!(png.starts_with(b"\x89PNG"));
         });
@@ -76,16 +86,37 @@ fn rendered_markers_read_back_to_their_own_id() {
             let ppm = 14.0 / (scene.scale * f.cell_size()); // 14 px per cell
             let pixmap = raster::rasterize(&scene, ppm).unwrap();
             let labels = reader.read(&f, &scene, &pixmap, ppm);
-            assert_eq!(labels, f.keypoint_categories(id).unwrap().into_iter().map(Some).collect::<Vec<_>>(), "{} {id}", f.name());
-            let d = decode(&f, &labels, None).unwrap_or_else(|| panic!("{} {id} did not decode", f.name()));
-            assert_eq!((d.id, d.rotation, d.corrected_errors, d.fixed_mismatches), (id, 0, 0, 0), "{}", f.name());
+            assert_eq!(
+                labels,
+                f.keypoint_categories(id)
+                    .unwrap()
+                    .into_iter()
+                    .map(Some)
+                    .collect::<Vec<_>>(),
+                "{} {id}",
+                f.name()
+            );
+            let d = decode(&f, &labels, None)
+                .unwrap_or_else(|| panic!("{} {id} did not decode", f.name()));
+            assert_eq!(
+                (d.id, d.rotation, d.corrected_errors, d.fixed_mismatches),
+                (id, 0, 0, 0),
+                "{}",
+                f.name()
+            );
 
             // The same marker turned a quarter: square layouts decode it with rotation 90°.
             if f.rotations().len() == 4 && scene.width_mm == scene.height_mm {
                 let turned = quarter_turn(&pixmap);
                 let labels = reader.read(&f, &scene, &turned, ppm);
-                let d = decode(&f, &labels, None).unwrap_or_else(|| panic!("{} {id} turned did not decode", f.name()));
-                assert_eq!((d.id, f.rotations()[d.rotation].angle_deg), (id, 90.0), "{}", f.name());
+                let d = decode(&f, &labels, None)
+                    .unwrap_or_else(|| panic!("{} {id} turned did not decode", f.name()));
+                assert_eq!(
+                    (d.id, f.rotations()[d.rotation].angle_deg),
+                    (id, 90.0),
+                    "{}",
+                    f.name()
+                );
             }
         }
     }
@@ -95,7 +126,12 @@ fn rendered_markers_read_back_to_their_own_id() {
 fn decoding_corrects_errors_up_to_the_limit_and_no_further() {
     let f = tagsmith::builtin::get("apriltag-36h11").unwrap().unwrap();
     let id = 123;
-    let truth: Vec<Option<usize>> = f.keypoint_categories(id).unwrap().into_iter().map(Some).collect();
+    let truth: Vec<Option<usize>> = f
+        .keypoint_categories(id)
+        .unwrap()
+        .into_iter()
+        .map(Some)
+        .collect();
     let flip = |labels: &mut Vec<Option<usize>>, n: usize| {
         for &kp in f.code_keypoints().iter().take(n) {
             labels[kp] = labels[kp].map(|c| 1 - c);
@@ -146,37 +182,64 @@ fn standard_families_match_opencv_renderings_cell_for_cell() {
         ("apriltag_36h11", "apriltag-36h11"),
     ];
     let mut compared = 0;
-    for entry in std::fs::read_dir(shared().join("reference")).expect("shared/codebooks/reference") {
+    for entry in std::fs::read_dir(shared().join("reference")).expect("shared/codebooks/reference")
+    {
         let path = entry.unwrap().path();
         let stem = path.file_stem().unwrap().to_str().unwrap().to_string();
         let (table, id) = stem.rsplit_once("_id").unwrap();
-        let Some((_, name)) = cases.iter().find(|(t, _)| *t == table) else { continue };
+        let Some((_, name)) = cases.iter().find(|(t, _)| *t == table) else {
+            continue;
+        };
         let f = tagsmith::builtin::get(name).unwrap().unwrap();
         let id: usize = id.parse().unwrap();
         let reference = Pixmap::load_png(&path).unwrap();
         let n = f.extent().width() as u32;
         assert_eq!(reference.width(), n * 10, "{stem}");
-        let scene = marker_scene(&f, id, SceneOptions { side_mm: Some(n as f64), quiet_zone: Some(0.0) }).unwrap();
+        let scene = marker_scene(
+            &f,
+            id,
+            SceneOptions {
+                side_mm: Some(n as f64),
+                quiet_zone: Some(0.0),
+            },
+        )
+        .unwrap();
         let ours = raster::rasterize(&scene, 10.0).unwrap();
         for row in 0..n {
             for col in 0..n {
                 let (x, y) = (col * 10 + 5, row * 10 + 5);
-                let (a, b) = (raster::gray_at(&reference, x, y), raster::gray_at(&ours, x, y));
+                let (a, b) = (
+                    raster::gray_at(&reference, x, y),
+                    raster::gray_at(&ours, x, y),
+                );
                 assert_eq!(a > 127.0, b > 127.0, "{stem}: cell row {row} col {col}");
             }
         }
         compared += 1;
     }
-    assert_eq!(compared, 28, "every reference image of a built-in family was compared");
+    assert_eq!(
+        compared, 28,
+        "every reference image of a built-in family was compared"
+    );
 }
 
 /// The AprilTag library's own tables, turned 180° on import, give OpenCV's codes: the same
 /// conversion makes tagStandard41h12 and tagCircle21h7 consistent with the other families.
 #[test]
 fn apriltag3_tables_turned_half_way_equal_opencv_tables() {
-    for (april, opencv) in [("tag16h5", "apriltag_16h5"), ("tag25h9", "apriltag_25h9"), ("tag36h11", "apriltag_36h11")] {
-        let a = AprilTag3Table::parse(&std::fs::read_to_string(shared().join(format!("apriltag3/{april}.json"))).unwrap()).unwrap();
-        let o = OpenCvTable::parse(&std::fs::read_to_string(shared().join(format!("{opencv}.json"))).unwrap()).unwrap();
+    for (april, opencv) in [
+        ("tag16h5", "apriltag_16h5"),
+        ("tag25h9", "apriltag_25h9"),
+        ("tag36h11", "apriltag_36h11"),
+    ] {
+        let a = AprilTag3Table::parse(
+            &std::fs::read_to_string(shared().join(format!("apriltag3/{april}.json"))).unwrap(),
+        )
+        .unwrap();
+        let o = OpenCvTable::parse(
+            &std::fs::read_to_string(shared().join(format!("{opencv}.json"))).unwrap(),
+        )
+        .unwrap();
         assert_eq!(a.to_grid().unwrap().codes, o.bits().unwrap(), "{april}");
     }
 }
@@ -187,13 +250,35 @@ fn family_files_match_their_builder() {
     let read = |p: PathBuf| std::fs::read_to_string(p).unwrap();
     let table = |f: &str| OpenCvTable::parse(&read(shared().join(f))).unwrap();
     let check = |spec: tagsmith::family::spec::FamilySpec| {
-        let (_, committed) = tagsmith::builtin::SOURCES.iter().find(|(n, _)| *n == spec.name).unwrap();
-        assert!(to_json_string(&spec) == *committed, "families/{}.json differs from its builder; run build_families", spec.name);
+        let (_, committed) = tagsmith::builtin::SOURCES
+            .iter()
+            .find(|(n, _)| *n == spec.name)
+            .unwrap();
+        assert!(
+            to_json_string(&spec) == *committed,
+            "families/{}.json differs from its builder; run build_families",
+            spec.name
+        );
     };
-    check(designs::opencv_family("aruco-6x6_250", "ArUco 6x6_250", &table("6x6_250.json")).unwrap());
-    let t41 = AprilTag3Table::parse(&read(shared().join("apriltag3/tagStandard41h12.json"))).unwrap();
-    check(designs::apriltag3_family("apriltag-standard41h12", "AprilTag tagStandard41h12", &t41).unwrap());
-    check(designs::shaped_36h11("apriltag-xo-36h11", "AprilTag-XO 36h11", &table("apriltag_36h11.json"), ("x", designs::cross()), ("o", designs::ring())).unwrap());
+    check(
+        designs::opencv_family("aruco-6x6_250", "ArUco 6x6_250", &table("6x6_250.json")).unwrap(),
+    );
+    let t41 =
+        AprilTag3Table::parse(&read(shared().join("apriltag3/tagStandard41h12.json"))).unwrap();
+    check(
+        designs::apriltag3_family("apriltag-standard41h12", "AprilTag tagStandard41h12", &t41)
+            .unwrap(),
+    );
+    check(
+        designs::shaped_36h11(
+            "apriltag-xo-36h11",
+            "AprilTag-XO 36h11",
+            &table("apriltag_36h11.json"),
+            ("x", designs::cross()),
+            ("o", designs::ring()),
+        )
+        .unwrap(),
+    );
     check(designs::quaternary_6x6().unwrap());
     let rune = designs::runetag().unwrap();
     check(designs::runetag_plus(&rune).unwrap());

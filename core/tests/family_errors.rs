@@ -7,7 +7,10 @@ use tagsmith::family::{from_json_str, load_file};
 use tagsmith::render::{marker_scene, SceneOptions};
 
 fn builtin(name: &str) -> Value {
-    let (_, text) = tagsmith::builtin::SOURCES.iter().find(|(n, _)| *n == name).unwrap();
+    let (_, text) = tagsmith::builtin::SOURCES
+        .iter()
+        .find(|(n, _)| *n == name)
+        .unwrap();
     serde_json::from_str(text).unwrap()
 }
 
@@ -16,7 +19,9 @@ fn error_of(family: &Value) -> String {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("bad-family.json");
     std::fs::write(&path, serde_json::to_string_pretty(family).unwrap()).unwrap();
-    let err = load_file(&path).expect_err("the family must be rejected").to_string();
+    let err = load_file(&path)
+        .expect_err("the family must be rejected")
+        .to_string();
     assert!(err.contains("bad-family.json: "), "no file name in: {err}");
     err
 }
@@ -45,19 +50,35 @@ fn code_length_does_not_match_the_symbol_keypoints() {
     assert_error(&f, "codebook.codes[3]", "36 symbol keypoints");
     let mut f = builtin("quaternary-6x6");
     f["codebook"]["codes"][2] = json!("0123");
-    assert_error(&f, "codebook.codes[2]", "4 symbols, but the layout has 36 symbol keypoints");
+    assert_error(
+        &f,
+        "codebook.codes[2]",
+        "4 symbols, but the layout has 36 symbol keypoints",
+    );
 }
 
 #[test]
 fn symbol_value_out_of_range() {
     let mut f = builtin("apriltag-36h11");
     f["categories"][1]["role"] = json!({"symbol": 2});
-    assert_error(&f, "categories[1].role.symbol", "symbol value 2 is ≥ the number of symbol categories (2)");
+    assert_error(
+        &f,
+        "categories[1].role.symbol",
+        "symbol value 2 is ≥ the number of symbol categories (2)",
+    );
     let mut f = builtin("quaternary-6x6");
-    let mut code: Vec<char> = f["codebook"]["codes"][5].as_str().unwrap().chars().collect();
+    let mut code: Vec<char> = f["codebook"]["codes"][5]
+        .as_str()
+        .unwrap()
+        .chars()
+        .collect();
     code[7] = '4';
     f["codebook"]["codes"][5] = json!(code.into_iter().collect::<String>());
-    assert_error(&f, "codebook.codes[5]", "symbol 4 at position 7 is ≥ the number of symbol categories (4)");
+    assert_error(
+        &f,
+        "codebook.codes[5]",
+        "symbol 4 at position 7 is ≥ the number of symbol categories (4)",
+    );
 }
 
 #[test]
@@ -83,16 +104,26 @@ fn duplicate_ids_also_under_rotation() {
     let mut f = builtin("apriltag-36h11");
     let first = f["codebook"]["codes"][0].clone();
     f["codebook"]["codes"][9] = first;
-    assert_error(&f, "codebook.codes[9]", "duplicate ID: the same code as ID 0");
+    assert_error(
+        &f,
+        "codebook.codes[9]",
+        "duplicate ID: the same code as ID 0",
+    );
 
     // ID 1 turned a quarter: a 6×6 grid read row-major.
     let mut f = builtin("apriltag-36h11");
     let hex = f["codebook"]["codes"][1].as_str().unwrap();
-    let bits: Vec<u8> = (0..36).map(|i| ((u64::from_str_radix(hex, 16).unwrap() >> (35 - i)) & 1) as u8).collect();
+    let bits: Vec<u8> = (0..36)
+        .map(|i| ((u64::from_str_radix(hex, 16).unwrap() >> (35 - i)) & 1) as u8)
+        .collect();
     let turned: Vec<u8> = (0..36).map(|i| bits[(5 - i % 6) * 6 + i / 6]).collect();
     let value = turned.iter().fold(0u64, |acc, &b| acc << 1 | b as u64);
     f["codebook"]["codes"][20] = json!(format!("{value:09x}"));
-    assert_error(&f, "codebook.codes[20]", "duplicate ID: the code of ID 1 rotated");
+    assert_error(
+        &f,
+        "codebook.codes[20]",
+        "duplicate ID: the code of ID 1 rotated",
+    );
 }
 
 #[test]
@@ -112,7 +143,11 @@ fn typos_and_wrong_types_name_the_field() {
     assert_error(&f, "format", "unsupported format 2");
     let mut f = builtin("apriltag-36h11");
     f["categories"][0]["primitives"][0]["fill"] = json!("black");
-    assert_error(&f, "categories[0].primitives[0].fill", "must start with '#'");
+    assert_error(
+        &f,
+        "categories[0].primitives[0].fill",
+        "must start with '#'",
+    );
 }
 
 #[test]
@@ -127,7 +162,9 @@ fn impossible_ring_layouts_are_rejected() {
 
 #[test]
 fn malformed_json_gives_line_and_column() {
-    let err = from_json_str("{\"format\": 1, \"name\": ").unwrap_err().to_string();
+    let err = from_json_str("{\"format\": 1, \"name\": ")
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("line 1"), "{err}");
 }
 
@@ -175,7 +212,14 @@ fn mutate(v: &mut Value, rng: &mut ChaCha8Rng) {
 #[test]
 fn fuzzed_families_never_panic() {
     let mut rng = ChaCha8Rng::seed_from_u64(2026);
-    let families = ["apriltag-16h5", "apriltag-circle21h7", "quaternary-6x6", "runetag-plus", "topotag-like", "apriltag-xa-36h11"];
+    let families = [
+        "apriltag-16h5",
+        "apriltag-circle21h7",
+        "quaternary-6x6",
+        "runetag-plus",
+        "topotag-like",
+        "apriltag-xa-36h11",
+    ];
     let mut loaded = 0;
     for round in 0..1200 {
         let mut f = builtin(families[round % families.len()]);
@@ -190,7 +234,10 @@ fn fuzzed_families_never_panic() {
         }
     }
     // Most mutations must still be caught, but some leave a valid family: both paths ran.
-    assert!(loaded > 50 && loaded < 1150, "{loaded} of 1200 mutated families loaded");
+    assert!(
+        loaded > 50 && loaded < 1150,
+        "{loaded} of 1200 mutated families loaded"
+    );
 
     for _ in 0..300 {
         let len = rng.random_range(0..400);

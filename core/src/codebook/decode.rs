@@ -22,7 +22,11 @@ pub struct Decoded {
 /// pattern marks the orientation (a distinct corner, orientation dots) decode all-symmetric codes
 /// too. The result is accepted when at most `max_errors` symbols (default: the codebook's
 /// correction limit) and at most as many fixed keypoints were wrong.
-pub fn decode(family: &Family, observed: &[Option<usize>], max_errors: Option<usize>) -> Option<Decoded> {
+pub fn decode(
+    family: &Family,
+    observed: &[Option<usize>],
+    max_errors: Option<usize>,
+) -> Option<Decoded> {
     let keypoints = family.keypoints();
     if observed.len() != keypoints.len() {
         return None;
@@ -50,7 +54,8 @@ pub fn decode(family: &Family, observed: &[Option<usize>], max_errors: Option<us
             .iter()
             .map(|&kp| label(kp).and_then(|c| family.category_symbol(c)));
         packing.pack_into(symbols, &mut packed, &mut known);
-        let unknown = family.code_len() - known.iter().map(|w| w.count_ones() as usize).sum::<usize>();
+        let unknown =
+            family.code_len() - known.iter().map(|w| w.count_ones() as usize).sum::<usize>();
 
         let nearest = match (unknown, codebook.lookup(&packed)) {
             (0, Some(id)) => Some((0, id)),
@@ -61,7 +66,9 @@ pub fn decode(family: &Family, observed: &[Option<usize>], max_errors: Option<us
                 })
                 .min(),
         };
-        let Some((errors, id)) = nearest else { continue };
+        let Some((errors, id)) = nearest else {
+            continue;
+        };
         let cost = errors + fixed_mismatches;
         if best.is_none_or(|(c, _)| cost < c) {
             best = Some((

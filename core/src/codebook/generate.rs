@@ -70,8 +70,16 @@ impl GenerateParams {
     /// Parameters for a family's layout: its code length, alphabet and rotations.
     pub fn for_family(family: &crate::family::Family, min_distance: u32) -> Self {
         let mut p = Self::new(family.q(), family.code_len(), min_distance);
-        p.rotations = family.ambiguous_rotations().filter_map(|r| r.code_perm.clone()).collect();
-        p.symmetry_rotations = family.rotations().iter().skip(1).filter_map(|r| r.code_perm.clone()).collect();
+        p.rotations = family
+            .ambiguous_rotations()
+            .filter_map(|r| r.code_perm.clone())
+            .collect();
+        p.symmetry_rotations = family
+            .rotations()
+            .iter()
+            .skip(1)
+            .filter_map(|r| r.code_perm.clone())
+            .collect();
         p
     }
 }
@@ -91,7 +99,10 @@ pub struct GenerateReport {
 pub type ProgressFn<'a> = &'a mut dyn FnMut(u64, usize);
 
 /// Generates a codebook; `progress` is called every 65 536 candidates.
-pub fn generate(params: &GenerateParams, progress: ProgressFn<'_>) -> Result<GenerateReport, String> {
+pub fn generate(
+    params: &GenerateParams,
+    progress: ProgressFn<'_>,
+) -> Result<GenerateReport, String> {
     check(params)?;
     let start = Instant::now();
     let packing = Packing::new(params.q, params.len);
@@ -106,7 +117,11 @@ pub fn generate(params: &GenerateParams, progress: ProgressFn<'_>) -> Result<Gen
     let mut candidate = vec![0u8; params.len];
     let mut rng = ChaCha8Rng::seed_from_u64(params.seed);
     let exhaustive = space_log2 <= 24.0;
-    let space = if space_log2 < 63.0 { Some((params.q as u64).pow(params.len as u32)) } else { None };
+    let space = if space_log2 < 63.0 {
+        Some((params.q as u64).pow(params.len as u32))
+    } else {
+        None
+    };
     let mut shuffled: Vec<u32> = Vec::new();
     if exhaustive && params.order == Order::Random {
         shuffled = (0..space.expect("a small space has a size") as u32).collect();
@@ -129,12 +144,16 @@ pub fn generate(params: &GenerateParams, progress: ProgressFn<'_>) -> Result<Gen
             stop = "every candidate tried";
             break;
         }
-        let end = (tried + BATCH).min(params.max_candidates).min(space.unwrap_or(u64::MAX));
+        let end = (tried + BATCH)
+            .min(params.max_candidates)
+            .min(space.unwrap_or(u64::MAX));
         let batch: Vec<Vec<u8>> = (tried..end)
             .map(|n| {
                 match params.order {
                     Order::Lexicographic => write_base_q(n, params.q, &mut candidate),
-                    Order::Random if exhaustive => write_base_q(shuffled[n as usize] as u64, params.q, &mut candidate),
+                    Order::Random if exhaustive => {
+                        write_base_q(shuffled[n as usize] as u64, params.q, &mut candidate)
+                    }
                     Order::Random => random_code(&mut rng, params.q, &mut candidate),
                 }
                 candidate.clone()
@@ -162,9 +181,16 @@ pub fn generate(params: &GenerateParams, progress: ProgressFn<'_>) -> Result<Gen
     }
     progress(tried, selector.codes.len());
     let codes = selector.codes;
-    let codebook = Codebook::from_codes(params.q, params.len, codes, Some(params.min_distance), None);
+    let codebook =
+        Codebook::from_codes(params.q, params.len, codes, Some(params.min_distance), None);
     let achieved = codebook.min_distance(&params.rotations);
-    let codebook = Codebook::from_codes(params.q, params.len, codebook.codes().to_vec(), achieved, None);
+    let codebook = Codebook::from_codes(
+        params.q,
+        params.len,
+        codebook.codes().to_vec(),
+        achieved,
+        None,
+    );
     Ok(GenerateReport {
         codebook,
         achieved_min_distance: achieved,
@@ -189,7 +215,11 @@ fn check(p: &GenerateParams) -> Result<(), String> {
     }
     for r in p.rotations.iter().chain(&p.symmetry_rotations) {
         let mut seen = vec![false; p.len];
-        if r.len() != p.len || !r.iter().all(|&i| i < p.len && !std::mem::replace(&mut seen[i], true)) {
+        if r.len() != p.len
+            || !r
+                .iter()
+                .all(|&i| i < p.len && !std::mem::replace(&mut seen[i], true))
+        {
             return Err("a rotation is not a permutation of the code positions".into());
         }
     }
@@ -200,7 +230,8 @@ fn check(p: &GenerateParams) -> Result<(), String> {
 /// words, one generator call per 64 bits instead of one per symbol.
 fn random_code(rng: &mut ChaCha8Rng, q: usize, out: &mut [u8]) {
     if !q.is_power_of_two() {
-        out.iter_mut().for_each(|s| *s = rng.random_range(0..q as u8));
+        out.iter_mut()
+            .for_each(|s| *s = rng.random_range(0..q as u8));
         return;
     }
     let bits = q.trailing_zeros();
@@ -274,7 +305,11 @@ impl<'a> Selector<'a> {
             }
             variants.extend_from_slice(&v);
         }
-        if p.reject_self_symmetric && p.symmetry_rotations.iter().any(|r| permute(code, r) == code) {
+        if p.reject_self_symmetric
+            && p.symmetry_rotations
+                .iter()
+                .any(|r| permute(code, r) == code)
+        {
             return None;
         }
         Some(variants)
@@ -306,7 +341,9 @@ impl<'a> Selector<'a> {
 fn far_from_words(kept: &[u64], x: u64, d: u32) -> bool {
     #[cfg(target_arch = "x86_64")]
     {
-        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("popcnt") {
+        if std::arch::is_x86_feature_detected!("avx2")
+            && std::arch::is_x86_feature_detected!("popcnt")
+        {
             // SAFETY: the CPU was just checked for both features.
             return unsafe { far_from_words_avx2(kept, x, d) };
         }
@@ -322,8 +359,12 @@ unsafe fn far_from_words_avx2(kept: &[u64], x: u64, d: u32) -> bool {
 
 #[inline(always)]
 fn far_from_words_portable(kept: &[u64], x: u64, d: u32) -> bool {
-    kept.chunks(64)
-        .all(|c| c.iter().map(|&v| u32::from((v ^ x).count_ones() < d)).sum::<u32>() == 0)
+    kept.chunks(64).all(|c| {
+        c.iter()
+            .map(|&v| u32::from((v ^ x).count_ones() < d))
+            .sum::<u32>()
+            == 0
+    })
 }
 
 #[cfg(test)]
@@ -387,7 +428,11 @@ mod tests {
         params.symmetry_rotations = grid_rotations(2);
         params.reject_self_symmetric = true;
         let r = generate(&params, &mut |_, _| {}).unwrap();
-        assert!(r.codebook.codes().iter().all(|c| c != &vec![0, 0, 0, 0] && c != &vec![1, 1, 1, 1]));
+        assert!(r
+            .codebook
+            .codes()
+            .iter()
+            .all(|c| c != &vec![0, 0, 0, 0] && c != &vec![1, 1, 1, 1]));
     }
 
     #[test]
@@ -398,8 +443,16 @@ mod tests {
         let ours = generate(&params, &mut |_, _| {}).unwrap();
         params.order = Order::Lexicographic;
         let lexicode = generate(&params, &mut |_, _| {}).unwrap();
-        assert!(ours.codebook.len() > 5 * lexicode.codebook.len(), "{} vs {}", ours.codebook.len(), lexicode.codebook.len());
-        assert!(ours.achieved_min_distance.unwrap() >= 10 && lexicode.achieved_min_distance.unwrap() >= 10);
+        assert!(
+            ours.codebook.len() > 5 * lexicode.codebook.len(),
+            "{} vs {}",
+            ours.codebook.len(),
+            lexicode.codebook.len()
+        );
+        assert!(
+            ours.achieved_min_distance.unwrap() >= 10
+                && lexicode.achieved_min_distance.unwrap() >= 10
+        );
     }
 
     #[test]

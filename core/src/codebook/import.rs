@@ -67,7 +67,10 @@ impl AprilTag3Table {
     pub fn parse(json: &str) -> Result<Self, String> {
         let t: Self = serde_json::from_str(json).map_err(|e| e.to_string())?;
         if t.bit_x.len() != t.nbits || t.bit_y.len() != t.nbits {
-            return Err(format!("{}: bit_x/bit_y must list {} cells", t.name, t.nbits));
+            return Err(format!(
+                "{}: bit_x/bit_y must list {} cells",
+                t.name, t.nbits
+            ));
         }
         if !(1..=32).contains(&t.total_width) || t.width_at_border > t.total_width {
             return Err(format!("{}: implausible widths", t.name));
@@ -83,7 +86,12 @@ impl AprilTag3Table {
         let mut ring = |side: i64, colour: u8| {
             let s = (w - side) / 2;
             for i in 0..side {
-                for (x, y) in [(s + i, s), (s + i, s + side - 1), (s, s + i), (s + side - 1, s + i)] {
+                for (x, y) in [
+                    (s + i, s),
+                    (s + i, s + side - 1),
+                    (s, s + i),
+                    (s + side - 1, s + i),
+                ] {
                     grid[y as usize][x as usize] = colour;
                 }
             }
@@ -98,9 +106,15 @@ impl AprilTag3Table {
         ring(black, b'b');
         let cell_of_bit: Vec<(usize, usize)> = (0..self.nbits)
             .map(|i| {
-                let (x, y) = (self.bit_x[i] as i32 as i64 + start, self.bit_y[i] as i32 as i64 + start);
+                let (x, y) = (
+                    self.bit_x[i] as i32 as i64 + start,
+                    self.bit_y[i] as i32 as i64 + start,
+                );
                 if !(0..w).contains(&x) || !(0..w).contains(&y) {
-                    return Err(format!("{}: bit {i} lies outside the {w}×{w} tag", self.name));
+                    return Err(format!(
+                        "{}: bit {i} lies outside the {w}×{w} tag",
+                        self.name
+                    ));
                 }
                 // Half turn into OpenCV's orientation.
                 Ok(((w - 1 - x) as usize, (w - 1 - y) as usize))
@@ -116,7 +130,8 @@ impl AprilTag3Table {
         if order.len() != self.nbits {
             return Err(format!("{}: two bits share a cell", self.name));
         }
-        let position = |cell: (usize, usize)| order.binary_search_by_key(&(cell.1, cell.0), |&(x, y)| (y, x));
+        let position =
+            |cell: (usize, usize)| order.binary_search_by_key(&(cell.1, cell.0), |&(x, y)| (y, x));
         let codes = self
             .codes
             .iter()
@@ -130,7 +145,10 @@ impl AprilTag3Table {
             })
             .collect::<Result<_, String>>()?;
         Ok(GridTable {
-            cells: grid.into_iter().map(|r| String::from_utf8(r).expect("ASCII")).collect(),
+            cells: grid
+                .into_iter()
+                .map(|r| String::from_utf8(r).expect("ASCII"))
+                .collect(),
             codes,
             border_square: (start as usize, self.width_at_border as usize),
         })
@@ -141,7 +159,9 @@ impl AprilTag3Table {
 fn hex_bits(text: &str, len: usize) -> Result<Vec<u8>, String> {
     let mut bits = Vec::with_capacity(text.len() * 4);
     for c in text.chars() {
-        let v = c.to_digit(16).ok_or_else(|| format!("{text:?} is not hexadecimal"))?;
+        let v = c
+            .to_digit(16)
+            .ok_or_else(|| format!("{text:?} is not hexadecimal"))?;
         bits.extend((0..4).rev().map(|b| ((v >> b) & 1) as u8));
     }
     if bits.len() < len {
@@ -150,7 +170,7 @@ fn hex_bits(text: &str, len: usize) -> Result<Vec<u8>, String> {
         return Ok(padded);
     }
     let extra = bits.len() - len;
-    if bits[..extra].iter().any(|&b| b == 1) {
+    if bits[..extra].contains(&1) {
         return Err(format!("{text:?} has more than {len} bits"));
     }
     Ok(bits[extra..].to_vec())

@@ -64,7 +64,12 @@ impl Codebook {
 
     /// Parses the codes of a spec. `rotations` are the code permutations under which the layout
     /// is ambiguous; a code equal to a rotation of an earlier one is a duplicate ID.
-    pub fn parse(spec: &CodebookSpec, q: usize, len: usize, rotations: &[Vec<usize>]) -> Result<Self, Vec<Problem>> {
+    pub fn parse(
+        spec: &CodebookSpec,
+        q: usize,
+        len: usize,
+        rotations: &[Vec<usize>],
+    ) -> Result<Self, Vec<Problem>> {
         let mut problems = Vec::new();
         if spec.encoding == CodeEncoding::Hex && q != 2 {
             problems.push(Problem::new(
@@ -123,7 +128,13 @@ impl Codebook {
         if !problems.is_empty() {
             return Err(problems);
         }
-        Ok(Self::from_codes(q, len, codes, spec.min_distance, spec.max_correction))
+        Ok(Self::from_codes(
+            q,
+            len,
+            codes,
+            spec.min_distance,
+            spec.max_correction,
+        ))
     }
 
     pub fn q(&self) -> usize {
@@ -175,8 +186,11 @@ impl Codebook {
             .filter_map(|i| {
                 let own = variants[i].iter().map(|v| p.distance(self.packed(i), v));
                 let others = (i + 1..n).flat_map(|j| {
-                    std::iter::once(p.distance(self.packed(i), self.packed(j)))
-                        .chain(variants[j].iter().map(move |v| p.distance(self.packed(i), v)))
+                    std::iter::once(p.distance(self.packed(i), self.packed(j))).chain(
+                        variants[j]
+                            .iter()
+                            .map(move |v| p.distance(self.packed(i), v)),
+                    )
                 });
                 own.chain(others).min()
             })
@@ -185,7 +199,11 @@ impl Codebook {
 
     /// The codes written as in a family file.
     pub fn to_spec(&self, min_distance: Option<u32>, source: &str) -> CodebookSpec {
-        let encoding = if self.q == 2 { CodeEncoding::Hex } else { CodeEncoding::Digits };
+        let encoding = if self.q == 2 {
+            CodeEncoding::Hex
+        } else {
+            CodeEncoding::Digits
+        };
         CodebookSpec {
             encoding,
             min_distance,
@@ -207,7 +225,9 @@ impl Codebook {
 pub fn format_hex(bits: &[u8]) -> String {
     let digits = bits.len().div_ceil(4);
     let pad = digits * 4 - bits.len();
-    let padded: Vec<u8> = std::iter::repeat_n(0, pad).chain(bits.iter().copied()).collect();
+    let padded: Vec<u8> = std::iter::repeat_n(0, pad)
+        .chain(bits.iter().copied())
+        .collect();
     padded
         .chunks(4)
         .map(|nib| {
@@ -271,8 +291,12 @@ mod tests {
         let bits = vec![1, 0, 1, 1, 0, 1];
         assert_eq!(format_hex(&bits), "2d");
         assert_eq!(parse_hex("2d", 6).unwrap(), bits);
-        assert!(parse_hex("4d", 6).unwrap_err().contains("longer than 6 bits"));
-        assert!(parse_hex("2d0", 6).unwrap_err().contains("symbol keypoints"));
+        assert!(parse_hex("4d", 6)
+            .unwrap_err()
+            .contains("longer than 6 bits"));
+        assert!(parse_hex("2d0", 6)
+            .unwrap_err()
+            .contains("symbol keypoints"));
     }
 
     #[test]

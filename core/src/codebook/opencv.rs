@@ -12,12 +12,20 @@ use std::fmt::Write;
 /// OpenCV reads black and white cells inside a one-cell black border, so the family must be a
 /// grid of that shape whose two symbols are a dark and a light cell.
 pub fn dictionary_yaml(family: &Family) -> Result<String, String> {
-    let not_readable = |why: String| format!("{} cannot be read by OpenCV's ArUco detector: {why}", family.name());
+    let not_readable = |why: String| {
+        format!(
+            "{} cannot be read by OpenCV's ArUco detector: {why}",
+            family.name()
+        )
+    };
     if !family.is_grid() {
         return Err(not_readable("it is not a grid family".into()));
     }
     if family.q() != 2 {
-        return Err(not_readable(format!("it has {} symbols; OpenCV reads binary cells", family.q())));
+        return Err(not_readable(format!(
+            "it has {} symbols; OpenCV reads binary cells",
+            family.q()
+        )));
     }
     let reader = Reader::new(family);
     let dark = |cat: usize| reader.mean_gray(cat) < 96.0;
@@ -26,7 +34,11 @@ pub fn dictionary_yaml(family: &Family) -> Result<String, String> {
     let one_is_white = match (dark(s0) && light(s1), light(s0) && dark(s1)) {
         (true, _) => true,
         (_, true) => false,
-        _ => return Err(not_readable("its two symbols are not a dark and a light cell".into())),
+        _ => {
+            return Err(not_readable(
+                "its two symbols are not a dark and a light cell".into(),
+            ))
+        }
     };
     let n = (family.extent().width().round() as usize).max(1);
     let inner = n.saturating_sub(2);
@@ -46,7 +58,9 @@ pub fn dictionary_yaml(family: &Family) -> Result<String, String> {
         }
     }
     if kps.len() != n * n || family.code_len() != inner * inner {
-        return Err(not_readable("the grid has cells without keypoints or extra keypoints".into()));
+        return Err(not_readable(
+            "the grid has cells without keypoints or extra keypoints".into(),
+        ));
     }
     let mut out = String::from("%YAML:1.0\n---\n");
     let cb = family.codebook();

@@ -26,7 +26,12 @@ impl Packing {
     }
 
     /// Packs a code; `None` symbols (unknown) pack as 0 and are left out of `known`.
-    pub fn pack_into(&self, code: impl Iterator<Item = Option<u8>>, out: &mut [u64], known: &mut [u64]) {
+    pub fn pack_into(
+        &self,
+        code: impl Iterator<Item = Option<u8>>,
+        out: &mut [u64],
+        known: &mut [u64],
+    ) {
         out.fill(0);
         known.fill(0);
         for (i, s) in code.enumerate() {
@@ -68,13 +73,13 @@ impl Packing {
     #[inline]
     pub fn distance_known(&self, a: &[u64], b: &[u64], known: &[u64]) -> u32 {
         let mut total = 0;
-        for w in 0..self.words {
+        for (w, &mask) in known.iter().enumerate().take(self.words) {
             let mut diff = 0;
             for p in 0..self.planes {
                 let k = p * self.words + w;
                 diff |= a[k] ^ b[k];
             }
-            total += (diff & known[w]).count_ones();
+            total += (diff & mask).count_ones();
         }
         total
     }
@@ -116,7 +121,11 @@ mod tests {
         let p = Packing::new(2, 4);
         let mut obs = vec![0; 1];
         let mut known = vec![0; 1];
-        p.pack_into([Some(1), None, Some(0), Some(1)].into_iter(), &mut obs, &mut known);
+        p.pack_into(
+            [Some(1), None, Some(0), Some(1)].into_iter(),
+            &mut obs,
+            &mut known,
+        );
         let code = p.pack(&[1, 1, 1, 1]);
         assert_eq!(p.distance_known(&obs, &code, &known), 1);
     }

@@ -20,7 +20,14 @@ fn prim(shape: Shape, colour: &str) -> Primitive {
 }
 
 fn full_cell(colour: &str) -> Primitive {
-    prim(Shape::Square { size: 1.0, x: 0.0, y: 0.0 }, colour)
+    prim(
+        Shape::Square {
+            size: 1.0,
+            x: 0.0,
+            y: 0.0,
+        },
+        colour,
+    )
 }
 
 fn category(name: &str, role: Role, primitives: Vec<Primitive>) -> Category {
@@ -44,7 +51,13 @@ pub fn framed_cells(n: usize, frame: char) -> Vec<String> {
     (0..n)
         .map(|r| {
             (0..n)
-                .map(|c| if r == 0 || c == 0 || r == n - 1 || c == n - 1 { frame } else { '.' })
+                .map(|c| {
+                    if r == 0 || c == 0 || r == n - 1 || c == n - 1 {
+                        frame
+                    } else {
+                        '.'
+                    }
+                })
                 .collect()
         })
         .collect()
@@ -59,7 +72,10 @@ fn square_roi(first: f64, side: f64) -> Roi {
 }
 
 fn legend(pairs: &[(&str, &str)]) -> BTreeMap<String, String> {
-    pairs.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect()
+    pairs
+        .iter()
+        .map(|(k, v)| (k.to_string(), v.to_string()))
+        .collect()
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -97,8 +113,14 @@ fn grid_spec(
 }
 
 fn table_codebook(codes: &[Vec<u8>], min_distance: Option<u32>, source: &str) -> CodebookSpec {
-    Codebook::from_codes(2, codes.first().map_or(0, |c| c.len()), codes.to_vec(), min_distance, None)
-        .to_spec(min_distance, source)
+    Codebook::from_codes(
+        2,
+        codes.first().map_or(0, |c| c.len()),
+        codes.to_vec(),
+        min_distance,
+        None,
+    )
+    .to_spec(min_distance, source)
 }
 
 /// A family from an OpenCV dictionary dump (ArUco or OpenCV's AprilTag tables).
@@ -112,19 +134,29 @@ pub fn opencv_family(name: &str, title: &str, table: &OpenCvTable) -> Result<Fam
     Ok(grid_spec(
         name,
         title,
-        &format!("{g}×{g} data cells inside a one-cell black border; every cell centre is a keypoint."),
+        &format!(
+            "{g}×{g} data cells inside a one-cell black border; every cell centre is a keypoint."
+        ),
         &source,
         framed_cells(g + 2, 'b'),
         legend(&[("b", "black")]),
         black_white(),
         square_roi(0.0, (g + 2) as f64),
-        table_codebook(&bits, table.min_hamming_distance_with_rotations, &table.source),
+        table_codebook(
+            &bits,
+            table.min_hamming_distance_with_rotations,
+            &table.source,
+        ),
     ))
 }
 
 /// A family from an AprilTag 3 table, turned 180° into OpenCV's convention (see
 /// [`crate::codebook::import`]). Data cells may lie outside the black border.
-pub fn apriltag3_family(name: &str, title: &str, table: &AprilTag3Table) -> Result<FamilySpec, String> {
+pub fn apriltag3_family(
+    name: &str,
+    title: &str,
+    table: &AprilTag3Table,
+) -> Result<FamilySpec, String> {
     let grid = table.to_grid()?;
     let (first, side) = grid.border_square;
     let source = format!(
@@ -162,7 +194,10 @@ pub fn shaped_36h11(
          frame cells are a category of their own.",
         zero.0, one.0
     );
-    spec.source = format!("Design after DeepTag (Zhang et al., TPAMI 2023). {}", spec.source);
+    spec.source = format!(
+        "Design after DeepTag (Zhang et al., TPAMI 2023). {}",
+        spec.source
+    );
     spec.categories = vec![
         category("frame", Role::Fixed, vec![full_cell(BLACK)]),
         category(zero.0, Role::Symbol(0), zero.1),
@@ -175,17 +210,46 @@ pub fn shaped_36h11(
 }
 
 pub fn cross() -> Vec<Primitive> {
-    vec![prim(Shape::Cross { size: 0.72, width: 0.17, x: 0.0, y: 0.0 }, BLACK)]
+    vec![prim(
+        Shape::Cross {
+            size: 0.72,
+            width: 0.17,
+            x: 0.0,
+            y: 0.0,
+        },
+        BLACK,
+    )]
 }
 pub fn ring() -> Vec<Primitive> {
-    vec![prim(Shape::Ring { radius: 0.36, width: 0.13, x: 0.0, y: 0.0 }, BLACK)]
+    vec![prim(
+        Shape::Ring {
+            radius: 0.36,
+            width: 0.13,
+            x: 0.0,
+            y: 0.0,
+        },
+        BLACK,
+    )]
 }
 pub fn triangle() -> Vec<Primitive> {
-    vec![prim(Shape::Triangle { size: 0.72, x: 0.0, y: 0.04 }, BLACK)]
+    vec![prim(
+        Shape::Triangle {
+            size: 0.72,
+            x: 0.0,
+            y: 0.04,
+        },
+        BLACK,
+    )]
 }
 
 /// Generates a codebook for a spec's layout and stores it in the spec.
-pub fn fill_codebook(spec: &mut FamilySpec, min_distance: u32, max_codes: usize, seed: u64, start_with_zero: bool) -> Result<(), String> {
+pub fn fill_codebook(
+    spec: &mut FamilySpec,
+    min_distance: u32,
+    max_codes: usize,
+    seed: u64,
+    start_with_zero: bool,
+) -> Result<(), String> {
     let family = Family::from_spec(spec.clone()).map_err(|e: FamilyError| e.to_string())?;
     let mut params = GenerateParams::for_family(&family, min_distance);
     params.max_codes = max_codes;
@@ -215,16 +279,47 @@ pub fn quaternary_6x6() -> Result<FamilySpec, String> {
     let categories = vec![
         category("solid", Role::Symbol(0), vec![full_cell(BLACK)]),
         category("blank", Role::Symbol(1), vec![]),
-        category("dot", Role::Symbol(2), vec![prim(Shape::Dot { radius: 0.3, x: 0.0, y: 0.0 }, BLACK)]),
+        category(
+            "dot",
+            Role::Symbol(2),
+            vec![prim(
+                Shape::Dot {
+                    radius: 0.3,
+                    x: 0.0,
+                    y: 0.0,
+                },
+                BLACK,
+            )],
+        ),
         category(
             "window",
             Role::Symbol(3),
-            vec![full_cell(BLACK), prim(Shape::Square { size: 0.46, x: 0.0, y: 0.0 }, WHITE)],
+            vec![
+                full_cell(BLACK),
+                prim(
+                    Shape::Square {
+                        size: 0.46,
+                        x: 0.0,
+                        y: 0.0,
+                    },
+                    WHITE,
+                ),
+            ],
         ),
         category(
             "orientation",
             Role::Fixed,
-            vec![full_cell(BLACK), prim(Shape::Triangle { size: 0.62, x: 0.0, y: 0.04 }, WHITE)],
+            vec![
+                full_cell(BLACK),
+                prim(
+                    Shape::Triangle {
+                        size: 0.62,
+                        x: 0.0,
+                        y: 0.04,
+                    },
+                    WHITE,
+                ),
+            ],
         ),
     ];
     let mut spec = grid_spec(
@@ -302,22 +397,43 @@ pub fn runetag_plus(runetag: &FamilySpec) -> Result<FamilySpec, String> {
     spec.categories.push(category(
         "corner-cross",
         Role::Fixed,
-        vec![prim(Shape::Cross { size: 1.0, width: 0.3, x: 0.0, y: 0.0 }, BLACK)],
+        vec![prim(
+            Shape::Cross {
+                size: 1.0,
+                width: 0.3,
+                x: 0.0,
+                y: 0.0,
+            },
+            BLACK,
+        )],
     ));
     spec.categories.push(category(
         "corner-ring",
         Role::Fixed,
-        vec![prim(Shape::Ring { radius: 0.5, width: 0.25, x: 0.0, y: 0.0 }, BLACK)],
+        vec![prim(
+            Shape::Ring {
+                radius: 0.5,
+                width: 0.25,
+                x: 0.0,
+                y: 0.0,
+            },
+            BLACK,
+        )],
     ));
-    spec.extra = [(-1.0, -1.0, "corner-cross"), (1.0, -1.0, "corner-cross"), (1.0, 1.0, "corner-ring"), (-1.0, 1.0, "corner-cross")]
-        .iter()
-        .map(|&(x, y, c)| ExtraKeypoint {
-            x,
-            y,
-            size: 0.2,
-            category: c.into(),
-        })
-        .collect();
+    spec.extra = [
+        (-1.0, -1.0, "corner-cross"),
+        (1.0, -1.0, "corner-cross"),
+        (1.0, 1.0, "corner-ring"),
+        (-1.0, 1.0, "corner-cross"),
+    ]
+    .iter()
+    .map(|&(x, y, c)| ExtraKeypoint {
+        x,
+        y,
+        size: 0.2,
+        category: c.into(),
+    })
+    .collect();
     // No rotation maps the corner dots onto themselves, so the distance is over the codes alone.
     let family = Family::from_spec(spec.clone()).map_err(|e| e.to_string())?;
     let d = family.codebook().min_distance(&[]);
@@ -330,15 +446,44 @@ pub fn runetag_plus(runetag: &FamilySpec) -> Result<FamilySpec, String> {
 /// (1); the other 65 cells are non-coding keypoints.
 pub fn topotag_like() -> Result<FamilySpec, String> {
     let cells: Vec<String> = (0..9)
-        .map(|r| (0..9).map(|c| if r % 2 == 1 && c % 2 == 1 { '.' } else { 'g' }).collect())
+        .map(|r| {
+            (0..9)
+                .map(|c| if r % 2 == 1 && c % 2 == 1 { '.' } else { 'g' })
+                .collect()
+        })
         .collect();
     let categories = vec![
         category("ground", Role::Fixed, vec![full_cell(BLACK)]),
-        category("disc", Role::Symbol(0), vec![full_cell(BLACK), prim(Shape::Dot { radius: 0.34, x: 0.0, y: 0.0 }, WHITE)]),
+        category(
+            "disc",
+            Role::Symbol(0),
+            vec![
+                full_cell(BLACK),
+                prim(
+                    Shape::Dot {
+                        radius: 0.34,
+                        x: 0.0,
+                        y: 0.0,
+                    },
+                    WHITE,
+                ),
+            ],
+        ),
         category(
             "ring",
             Role::Symbol(1),
-            vec![full_cell(BLACK), prim(Shape::Ring { radius: 0.4, width: 0.16, x: 0.0, y: 0.0 }, WHITE)],
+            vec![
+                full_cell(BLACK),
+                prim(
+                    Shape::Ring {
+                        radius: 0.4,
+                        width: 0.16,
+                        x: 0.0,
+                        y: 0.0,
+                    },
+                    WHITE,
+                ),
+            ],
         ),
     ];
     let mut spec = grid_spec(

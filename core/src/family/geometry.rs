@@ -65,7 +65,11 @@ pub(super) fn rotation_candidates(layout: &Layout) -> ([f64; 2], Vec<f64>) {
 }
 
 /// Finds which candidate rotations map every keypoint onto a keypoint of the same size.
-pub(super) fn symmetries(keypoints: &[Keypoint], centre: [f64; 2], angles: &[f64]) -> Vec<Rotation> {
+pub(super) fn symmetries(
+    keypoints: &[Keypoint],
+    centre: [f64; 2],
+    angles: &[f64],
+) -> Vec<Rotation> {
     // Positions are quantised to a 1e-6 lattice of the layout's scale so that floating-point
     // rotation lands on the same key as the exact position.
     let scale = keypoints.iter().map(|k| k.size).fold(1e-9, f64::max);
@@ -104,20 +108,22 @@ pub(super) fn symmetries(keypoints: &[Keypoint], centre: [f64; 2], angles: &[f64
             .map(|k| {
                 let d = [k.pos[0] - centre[0], k.pos[1] - centre[1]];
                 // Clockwise on screen with y down is the standard rotation matrix.
-                let p = [centre[0] + c * d[0] - s * d[1], centre[1] + s * d[0] + c * d[1]];
+                let p = [
+                    centre[0] + c * d[0] - s * d[1],
+                    centre[1] + s * d[0] + c * d[1],
+                ];
                 let j = *index.get(&key(p))?;
                 ((keypoints[j].size - k.size).abs() <= 1e-9 * scale).then_some(j)
             })
             .collect();
         let Some(perm) = perm else { continue };
-        let preserves_fixed = keypoints
-            .iter()
-            .zip(&perm)
-            .all(|(k, &j)| match (k.assignment, keypoints[j].assignment) {
+        let preserves_fixed = keypoints.iter().zip(&perm).all(|(k, &j)| {
+            match (k.assignment, keypoints[j].assignment) {
                 (Assignment::Fixed(a), Assignment::Fixed(b)) => a == b,
                 (Assignment::Symbol(_), Assignment::Symbol(_)) => true,
                 _ => false,
-            });
+            }
+        });
         let code_perm: Option<Vec<usize>> = code_keypoints
             .iter()
             .map(|&kp| code_index.get(&perm[kp]).copied())

@@ -12,7 +12,10 @@ pub fn from_json_str(text: &str) -> Result<Family, FamilyError> {
     if text.len() > MAX_FILE_BYTES {
         return Err(FamilyError::single(
             "",
-            format!("file is {} bytes, over the limit of {MAX_FILE_BYTES}", text.len()),
+            format!(
+                "file is {} bytes, over the limit of {MAX_FILE_BYTES}",
+                text.len()
+            ),
         ));
     }
     let de = &mut serde_json::Deserializer::from_str(text);

@@ -25,7 +25,10 @@ pub(super) fn build(spec: FamilySpec) -> Result<Family, FamilyError> {
     if spec.format != FORMAT_VERSION {
         return Err(FamilyError::single(
             "format",
-            format!("unsupported format {} (this build reads format {FORMAT_VERSION})", spec.format),
+            format!(
+                "unsupported format {} (this build reads format {FORMAT_VERSION})",
+                spec.format
+            ),
         ));
     }
     check_name(&spec.name, &mut problems);
@@ -63,7 +66,10 @@ pub(super) fn build(spec: FamilySpec) -> Result<Family, FamilyError> {
         }
     }
     if code_keypoints.is_empty() {
-        return Err(FamilyError::single("layout", "no keypoint carries a code symbol"));
+        return Err(FamilyError::single(
+            "layout",
+            "no keypoint carries a code symbol",
+        ));
     }
     let (centre, angles) = rotation_candidates(&spec.layout);
     let rotations = symmetries(&keypoints, centre, &angles);
@@ -76,11 +82,19 @@ pub(super) fn build(spec: FamilySpec) -> Result<Family, FamilyError> {
     if spec.codebook.codes.len() > MAX_CODES {
         return Err(FamilyError::single(
             "codebook.codes",
-            format!("{} codes is over the limit of {MAX_CODES}", spec.codebook.codes.len()),
+            format!(
+                "{} codes is over the limit of {MAX_CODES}",
+                spec.codebook.codes.len()
+            ),
         ));
     }
-    let codebook = Codebook::parse(&spec.codebook, symbol_categories.len(), code_keypoints.len(), &ambiguous)
-        .map_err(FamilyError::new)?;
+    let codebook = Codebook::parse(
+        &spec.codebook,
+        symbol_categories.len(),
+        code_keypoints.len(),
+        &ambiguous,
+    )
+    .map_err(FamilyError::new)?;
 
     Ok(Family {
         background: background.expect("checked above"),
@@ -99,7 +113,9 @@ pub(super) fn build(spec: FamilySpec) -> Result<Family, FamilyError> {
 fn check_name(name: &str, problems: &mut Vec<Problem>) {
     let ok = !name.is_empty()
         && name.len() <= 64
-        && name.chars().all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c));
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c));
     if !ok {
         problems.push(Problem::new(
             "name",
@@ -110,18 +126,27 @@ fn check_name(name: &str, problems: &mut Vec<Problem>) {
 
 fn check_categories(spec: &FamilySpec, problems: &mut Vec<Problem>) -> Vec<CategoryPattern> {
     if spec.categories.is_empty() {
-        problems.push(Problem::new("categories", "a family needs at least two categories"));
+        problems.push(Problem::new(
+            "categories",
+            "a family needs at least two categories",
+        ));
     }
     let mut seen: HashMap<&str, usize> = HashMap::new();
     let mut out = Vec::new();
     for (i, cat) in spec.categories.iter().enumerate() {
         let path = format!("categories[{i}]");
         if cat.name.is_empty() || cat.name == "." {
-            problems.push(Problem::new(format!("{path}.name"), "a category needs a name other than \".\""));
+            problems.push(Problem::new(
+                format!("{path}.name"),
+                "a category needs a name other than \".\"",
+            ));
         } else if let Some(first) = seen.insert(cat.name.as_str(), i) {
             problems.push(Problem::new(
                 format!("{path}.name"),
-                format!("category {:?} is already defined at categories[{first}]", cat.name),
+                format!(
+                    "category {:?} is already defined at categories[{first}]",
+                    cat.name
+                ),
             ));
         }
         match parse_category(cat, &path) {
@@ -157,7 +182,10 @@ fn symbol_categories(spec: &FamilySpec, problems: &mut Vec<Problem>) -> Vec<usiz
         if s as usize >= q {
             problems.push(Problem::new(
                 path,
-                format!("symbol value {s} is ≥ the number of symbol categories ({q}); use 0 to {}", q - 1),
+                format!(
+                    "symbol value {s} is ≥ the number of symbol categories ({q}); use 0 to {}",
+                    q - 1
+                ),
             ));
         } else if let Some(first) = by_value[s as usize].replace(i) {
             problems.push(Problem::new(
@@ -180,7 +208,10 @@ fn layout_keypoints(
         next_symbol += 1;
         Assignment::Symbol(next_symbol - 1)
     };
-    let empty = Extent { min: [0.0; 2], max: [0.0; 2] };
+    let empty = Extent {
+        min: [0.0; 2],
+        max: [0.0; 2],
+    };
     let (mut extent, quiet_zone) = match &spec.layout {
         Layout::Grid {
             size,
@@ -205,7 +236,9 @@ fn layout_keypoints(
                         Some(&cat) => {
                             fixed.insert(c, cat);
                         }
-                        None => problems.push(Problem::new(path, format!("unknown category {name:?}"))),
+                        None => {
+                            problems.push(Problem::new(path, format!("unknown category {name:?}")))
+                        }
                     },
                     _ => problems.push(Problem::new(
                         path,
@@ -223,7 +256,13 @@ fn layout_keypoints(
             for (row, line) in cells.iter().enumerate() {
                 let path = format!("layout.cells[{row}]");
                 if line.chars().count() != n as usize {
-                    problems.push(Problem::new(path, format!("{} cells in a row of a grid of size {n}", line.chars().count())));
+                    problems.push(Problem::new(
+                        path,
+                        format!(
+                            "{} cells in a row of a grid of size {n}",
+                            line.chars().count()
+                        ),
+                    ));
                     continue;
                 }
                 for (col, c) in line.chars().enumerate() {
@@ -249,7 +288,13 @@ fn layout_keypoints(
                 }
             }
             let qz = check_quiet_zone("layout.quiet_zone", *quiet_zone, n as f64, problems);
-            (Extent { min: [0.0; 2], max: [n as f64; 2] }, qz)
+            (
+                Extent {
+                    min: [0.0; 2],
+                    max: [n as f64; 2],
+                },
+                qz,
+            )
         }
         Layout::Rings {
             radii,
@@ -279,7 +324,13 @@ fn layout_keypoints(
                 .map(|r| r * (1.0 + dot_radius_ratio))
                 .fold(0.0, f64::max);
             let qz = check_quiet_zone("layout.quiet_zone", *quiet_zone, reach, problems);
-            (Extent { min: [-reach; 2], max: [reach; 2] }, qz)
+            (
+                Extent {
+                    min: [-reach; 2],
+                    max: [reach; 2],
+                },
+                qz,
+            )
         }
     };
     let first_extra = keypoints.len();
@@ -287,11 +338,17 @@ fn layout_keypoints(
         let path = format!("extra[{i}]");
         let finite = |v: f64| v.is_finite() && v.abs() <= MAX_COORD;
         if !finite(e.x) || !finite(e.y) {
-            problems.push(Problem::new(path.clone(), format!("position must be within ±{MAX_COORD}")));
+            problems.push(Problem::new(
+                path.clone(),
+                format!("position must be within ±{MAX_COORD}"),
+            ));
             continue;
         }
         if !(e.size.is_finite() && e.size > 0.0 && e.size <= MAX_COORD) {
-            problems.push(Problem::new(format!("{path}.size"), "must be a positive number"));
+            problems.push(Problem::new(
+                format!("{path}.size"),
+                "must be a positive number",
+            ));
             continue;
         }
         let assignment = if e.category == "." {
@@ -299,7 +356,10 @@ fn layout_keypoints(
         } else if let Some(&cat) = names.get(e.category.as_str()) {
             Assignment::Fixed(cat)
         } else {
-            problems.push(Problem::new(format!("{path}.category"), format!("unknown category {:?}", e.category)));
+            problems.push(Problem::new(
+                format!("{path}.category"),
+                format!("unknown category {:?}", e.category),
+            ));
             continue;
         };
         let h = e.size / 2.0;
@@ -314,7 +374,10 @@ fn layout_keypoints(
     if keypoints.len() > MAX_KEYPOINTS {
         problems.push(Problem::new(
             "layout",
-            format!("{} keypoints is over the limit of {MAX_KEYPOINTS}", keypoints.len()),
+            format!(
+                "{} keypoints is over the limit of {MAX_KEYPOINTS}",
+                keypoints.len()
+            ),
         ));
     }
     check_overlaps(&keypoints, first_extra, problems);
@@ -325,31 +388,58 @@ fn check_quiet_zone(path: &str, qz: f64, scale: f64, problems: &mut Vec<Problem>
     if qz.is_finite() && qz >= 0.0 && qz <= 10.0 * scale {
         qz
     } else {
-        problems.push(Problem::new(path, format!("{qz} must be between 0 and {}", 10.0 * scale)));
+        problems.push(Problem::new(
+            path,
+            format!("{qz} must be between 0 and {}", 10.0 * scale),
+        ));
         0.0
     }
 }
 
-fn check_rings(radii: &[f64], slots: u32, ratio: f64, start: f64, problems: &mut Vec<Problem>) -> bool {
+fn check_rings(
+    radii: &[f64],
+    slots: u32,
+    ratio: f64,
+    start: f64,
+    problems: &mut Vec<Problem>,
+) -> bool {
     let before = problems.len();
     if radii.is_empty() || radii.len() > MAX_RINGS {
-        problems.push(Problem::new("layout.radii", format!("1 to {MAX_RINGS} rings, got {}", radii.len())));
+        problems.push(Problem::new(
+            "layout.radii",
+            format!("1 to {MAX_RINGS} rings, got {}", radii.len()),
+        ));
     }
     for (i, r) in radii.iter().enumerate() {
         if !(r.is_finite() && *r > 0.0 && *r <= MAX_COORD) {
-            problems.push(Problem::new(format!("layout.radii[{i}]"), format!("{r} must be a positive number")));
+            problems.push(Problem::new(
+                format!("layout.radii[{i}]"),
+                format!("{r} must be a positive number"),
+            ));
         } else if i > 0 && *r <= radii[i - 1] {
-            problems.push(Problem::new(format!("layout.radii[{i}]"), "radii must increase from the inner ring outwards"));
+            problems.push(Problem::new(
+                format!("layout.radii[{i}]"),
+                "radii must increase from the inner ring outwards",
+            ));
         }
     }
     if slots == 0 || slots > MAX_SLOTS {
-        problems.push(Problem::new("layout.slots", format!("{slots} slots: must be 1 to {MAX_SLOTS}")));
+        problems.push(Problem::new(
+            "layout.slots",
+            format!("{slots} slots: must be 1 to {MAX_SLOTS}"),
+        ));
     }
     if !(ratio.is_finite() && ratio > 0.0 && ratio < 0.5) {
-        problems.push(Problem::new("layout.dot_radius_ratio", format!("{ratio} must be in (0, 0.5)")));
+        problems.push(Problem::new(
+            "layout.dot_radius_ratio",
+            format!("{ratio} must be in (0, 0.5)"),
+        ));
     }
     if !start.is_finite() {
-        problems.push(Problem::new("layout.start_angle_deg", "must be a finite number"));
+        problems.push(Problem::new(
+            "layout.start_angle_deg",
+            "must be a finite number",
+        ));
     }
     if problems.len() > before {
         return false;
@@ -394,7 +484,10 @@ fn check_overlaps(keypoints: &[Keypoint], first_extra: usize, problems: &mut Vec
 fn check_print(spec: &FamilySpec, problems: &mut Vec<Problem>) {
     let s = spec.print.marker_side_mm;
     if !(s.is_finite() && s > 0.0 && s <= 10_000.0) {
-        problems.push(Problem::new("print.marker_side_mm", format!("{s} must be in (0, 10000] mm")));
+        problems.push(Problem::new(
+            "print.marker_side_mm",
+            format!("{s} must be in (0, 10000] mm"),
+        ));
     }
 }
 
@@ -405,8 +498,13 @@ fn check_keypoint_set(spec: &FamilySpec, n: usize, problems: &mut Vec<Problem>) 
             for (i, &k) in list.iter().enumerate() {
                 let path = format!("keypoint_set.custom[{i}]");
                 match seen.get_mut(k as usize) {
-                    None => problems.push(Problem::new(path, format!("keypoint {k} does not exist (the family has {n})"))),
-                    Some(s) if *s => problems.push(Problem::new(path, format!("keypoint {k} is listed twice"))),
+                    None => problems.push(Problem::new(
+                        path,
+                        format!("keypoint {k} does not exist (the family has {n})"),
+                    )),
+                    Some(s) if *s => {
+                        problems.push(Problem::new(path, format!("keypoint {k} is listed twice")))
+                    }
                     Some(s) => *s = true,
                 }
             }
@@ -415,7 +513,10 @@ fn check_keypoint_set(spec: &FamilySpec, n: usize, problems: &mut Vec<Problem>) 
             }
         }
         KeypointSet::Corners if !matches!(spec.layout, Layout::Grid { .. }) => {
-            problems.push(Problem::new("keypoint_set", "\"corners\" needs a grid layout"));
+            problems.push(Problem::new(
+                "keypoint_set",
+                "\"corners\" needs a grid layout",
+            ));
         }
         _ => {}
     }
@@ -426,13 +527,19 @@ fn check_roi(spec: &FamilySpec, problems: &mut Vec<Problem>) {
     if pts.len() < 4 {
         problems.push(Problem::new(
             "roi.points",
-            format!("needs at least 4 points to fix a homography, got {}", pts.len()),
+            format!(
+                "needs at least 4 points to fix a homography, got {}",
+                pts.len()
+            ),
         ));
         return;
     }
     for (i, p) in pts.iter().enumerate() {
         if !p.iter().all(|v| v.is_finite() && v.abs() <= MAX_COORD) {
-            problems.push(Problem::new(format!("roi.points[{i}]"), format!("coordinates must be within ±{MAX_COORD}")));
+            problems.push(Problem::new(
+                format!("roi.points[{i}]"),
+                format!("coordinates must be within ±{MAX_COORD}"),
+            ));
             return;
         }
     }
@@ -441,7 +548,9 @@ fn check_roi(spec: &FamilySpec, problems: &mut Vec<Problem>) {
         .iter()
         .flat_map(|a| q.iter().map(move |b| (a[0] - b[0]).hypot(a[1] - b[1])))
         .fold(0.0, f64::max);
-    let cross = |a: [f64; 2], b: [f64; 2], c: [f64; 2]| (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+    let cross = |a: [f64; 2], b: [f64; 2], c: [f64; 2]| {
+        (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+    };
     for (i, j, k) in [(0, 1, 2), (0, 1, 3), (0, 2, 3), (1, 2, 3)] {
         if cross(q[i], q[j], q[k]).abs() <= 1e-6 * scale * scale {
             problems.push(Problem::new(
@@ -452,7 +561,9 @@ fn check_roi(spec: &FamilySpec, problems: &mut Vec<Problem>) {
         }
     }
     // With y down, a clockwise TL→TR→BR→BL quadrilateral turns the same way at every corner.
-    let turns: Vec<f64> = (0..4).map(|i| cross(q[i], q[(i + 1) % 4], q[(i + 2) % 4])).collect();
+    let turns: Vec<f64> = (0..4)
+        .map(|i| cross(q[i], q[(i + 1) % 4], q[(i + 2) % 4]))
+        .collect();
     if !turns.iter().all(|&t| t > 0.0) {
         let why = if turns.iter().all(|&t| t < 0.0) {
             "they run counter-clockwise"
@@ -466,6 +577,9 @@ fn check_roi(spec: &FamilySpec, problems: &mut Vec<Problem>) {
     }
     let a = spec.roi.margin;
     if !(a.is_finite() && (0.0..0.45).contains(&a)) {
-        problems.push(Problem::new("roi.margin", format!("{a} must be in [0, 0.45)")));
+        problems.push(Problem::new(
+            "roi.margin",
+            format!("{a} must be in [0, 0.45)"),
+        ));
     }
 }

@@ -59,13 +59,17 @@ pub fn sheet_pdf(sheet: &Sheet) -> Result<Vec<u8>, RenderError> {
         page.finish();
         let mut content = Content::new();
         // svg2pdf's XObject spans one unit square; stretch it over the page.
-        content.transform([w_pt, 0.0, 0.0, h_pt, 0.0, 0.0]).x_object(name);
+        content
+            .transform([w_pt, 0.0, 0.0, h_pt, 0.0, 0.0])
+            .x_object(name);
         pdf.stream(content_ref, &content.finish());
         page_refs.push(page_ref);
         chunks.push(chunk);
     }
     pdf.catalog(catalog).pages(tree_ref);
-    pdf.pages(tree_ref).kids(page_refs.iter().copied()).count(page_refs.len() as i32);
+    pdf.pages(tree_ref)
+        .kids(page_refs.iter().copied())
+        .count(page_refs.len() as i32);
     for chunk in &chunks {
         pdf.extend(chunk);
     }

@@ -49,7 +49,11 @@ impl Path {
     fn polygon(points: &[(f64, f64)]) -> Path {
         let mut segs = Vec::with_capacity(points.len() + 1);
         for (i, &(x, y)) in points.iter().enumerate() {
-            segs.push(if i == 0 { Seg::Move(x, y) } else { Seg::Line(x, y) });
+            segs.push(if i == 0 {
+                Seg::Move(x, y)
+            } else {
+                Seg::Line(x, y)
+            });
         }
         segs.push(Seg::Close);
         Path(segs)
@@ -101,7 +105,9 @@ pub fn parse_category(cat: &Category, path: &str) -> Result<CategoryPattern, Vec
     for (i, prim) in cat.primitives.iter().enumerate() {
         match parse_primitive(prim) {
             Ok(item) => items.push(item),
-            Err((field, msg)) => problems.push(Problem::new(format!("{path}.primitives[{i}]{field}"), msg)),
+            Err((field, msg)) => {
+                problems.push(Problem::new(format!("{path}.primitives[{i}]{field}"), msg))
+            }
         }
     }
     if !problems.is_empty() {
@@ -130,7 +136,10 @@ fn positive(field: &str, v: f64) -> Result<f64, FieldError> {
     if v.is_finite() && v > 0.0 && v <= 2.0 * MAX_REACH {
         Ok(v)
     } else {
-        Err((format!(".{field}"), format!("{v} must be a number in (0, {}]", 2.0 * MAX_REACH)))
+        Err((
+            format!(".{field}"),
+            format!("{v} must be a number in (0, {}]", 2.0 * MAX_REACH),
+        ))
     }
 }
 
@@ -138,7 +147,10 @@ fn offset(field: &str, v: f64) -> Result<f64, FieldError> {
     if v.is_finite() && v.abs() <= MAX_REACH {
         Ok(v)
     } else {
-        Err((format!(".{field}"), format!("{v} must be within ±{MAX_REACH} cells")))
+        Err((
+            format!(".{field}"),
+            format!("{v} must be within ±{MAX_REACH} cells"),
+        ))
     }
 }
 
@@ -155,11 +167,19 @@ fn parse_primitive(p: &Primitive) -> Result<PatternItem, FieldError> {
     let stroke = match (stroke_colour, p.stroke_width) {
         (Some(c), Some(w)) => Some((c, positive("stroke_width", w)?)),
         (Some(c), None) => Some((c, 0.05)),
-        (None, Some(_)) => return Err((".stroke".into(), "stroke_width is set but stroke is not".into())),
+        (None, Some(_)) => {
+            return Err((
+                ".stroke".into(),
+                "stroke_width is set but stroke is not".into(),
+            ))
+        }
         (None, None) => None,
     };
     if fill.is_none() && stroke.is_none() {
-        return Err((String::new(), "draws nothing: give it a fill or a stroke colour".into()));
+        return Err((
+            String::new(),
+            "draws nothing: give it a fill or a stroke colour".into(),
+        ));
     }
     let path = shape_path(&p.shape)?;
     Ok(PatternItem { path, fill, stroke })
@@ -168,14 +188,36 @@ fn parse_primitive(p: &Primitive) -> Result<PatternItem, FieldError> {
 fn shape_path(shape: &Shape) -> Result<Path, FieldError> {
     Ok(match *shape {
         Shape::Square { size, x, y } => {
-            let (h, x, y) = (positive("size", size)? / 2.0, offset("x", x)?, offset("y", y)?);
-            Path::polygon(&[(x - h, y - h), (x + h, y - h), (x + h, y + h), (x - h, y + h)])
+            let (h, x, y) = (
+                positive("size", size)? / 2.0,
+                offset("x", x)?,
+                offset("y", y)?,
+            );
+            Path::polygon(&[
+                (x - h, y - h),
+                (x + h, y - h),
+                (x + h, y + h),
+                (x - h, y + h),
+            ])
         }
-        Shape::Dot { radius, x, y } => Path(Path::circle(offset("x", x)?, offset("y", y)?, positive("radius", radius)?, true)),
-        Shape::Ring { radius, width, x, y } => {
+        Shape::Dot { radius, x, y } => Path(Path::circle(
+            offset("x", x)?,
+            offset("y", y)?,
+            positive("radius", radius)?,
+            true,
+        )),
+        Shape::Ring {
+            radius,
+            width,
+            x,
+            y,
+        } => {
             let (r, w) = (positive("radius", radius)?, positive("width", width)?);
             if w >= r {
-                return Err((".width".into(), format!("ring width {w} must be less than its radius {r}")));
+                return Err((
+                    ".width".into(),
+                    format!("ring width {w} must be less than its radius {r}"),
+                ));
             }
             let (x, y) = (offset("x", x)?, offset("y", y)?);
             let mut segs = Path::circle(x, y, r, true);
@@ -185,7 +227,10 @@ fn shape_path(shape: &Shape) -> Result<Path, FieldError> {
         Shape::Cross { size, width, x, y } => {
             let (s, w) = (positive("size", size)? / 2.0, positive("width", width)?);
             if w >= size {
-                return Err((".width".into(), format!("bar width {w} must be less than the size {size}")));
+                return Err((
+                    ".width".into(),
+                    format!("bar width {w} must be less than the size {size}"),
+                ));
             }
             let (x, y) = (offset("x", x)?, offset("y", y)?);
             // Outline of the union of two diagonal bars: a 12-point star, one polygon, no overlap.
@@ -207,7 +252,11 @@ fn shape_path(shape: &Shape) -> Result<Path, FieldError> {
             Path::polygon(&pts.map(|(px, py)| (x + px, y + py)))
         }
         Shape::Triangle { size, x, y } => {
-            let (h, x, y) = (positive("size", size)? / 2.0, offset("x", x)?, offset("y", y)?);
+            let (h, x, y) = (
+                positive("size", size)? / 2.0,
+                offset("x", x)?,
+                offset("y", y)?,
+            );
             Path::polygon(&[(x, y - h), (x + h, y + h), (x - h, y + h)])
         }
         Shape::Bar {
@@ -217,7 +266,10 @@ fn shape_path(shape: &Shape) -> Result<Path, FieldError> {
             x,
             y,
         } => {
-            let (hw, hh) = (positive("width", width)? / 2.0, positive("height", height)? / 2.0);
+            let (hw, hh) = (
+                positive("width", width)? / 2.0,
+                positive("height", height)? / 2.0,
+            );
             if !angle_deg.is_finite() {
                 return Err((".angle_deg".into(), "must be a finite number".into()));
             }
@@ -240,10 +292,20 @@ fn parse_svg_path(d: &str) -> Result<Path, FieldError> {
         let s = match seg {
             S::MoveTo { x, y } => Seg::Move(x, y),
             S::LineTo { x, y } => Seg::Line(x, y),
-            S::CurveTo { x1, y1, x2, y2, x, y } => Seg::Cubic(x1, y1, x2, y2, x, y),
+            S::CurveTo {
+                x1,
+                y1,
+                x2,
+                y2,
+                x,
+                y,
+            } => Seg::Cubic(x1, y1, x2, y2, x, y),
             S::Quadratic { x1, y1, x, y } => {
                 // Degree elevation: the same curve as a cubic.
-                let (c1x, c1y) = (last.0 + 2.0 / 3.0 * (x1 - last.0), last.1 + 2.0 / 3.0 * (y1 - last.1));
+                let (c1x, c1y) = (
+                    last.0 + 2.0 / 3.0 * (x1 - last.0),
+                    last.1 + 2.0 / 3.0 * (y1 - last.1),
+                );
                 let (c2x, c2y) = (x + 2.0 / 3.0 * (x1 - x), y + 2.0 / 3.0 * (y1 - y));
                 Seg::Cubic(c1x, c1y, c2x, c2y, x, y)
             }
@@ -251,13 +313,18 @@ fn parse_svg_path(d: &str) -> Result<Path, FieldError> {
         };
         if let Seg::Move(x, y) | Seg::Line(x, y) | Seg::Cubic(.., x, y) = s {
             if !(x.is_finite() && y.is_finite() && x.abs() <= MAX_REACH && y.abs() <= MAX_REACH) {
-                return Err(err(format!("point ({x}, {y}) is outside ±{MAX_REACH} cells")));
+                return Err(err(format!(
+                    "point ({x}, {y}) is outside ±{MAX_REACH} cells"
+                )));
             }
             last = (x, y);
         }
         segs.push(s);
     }
-    if !segs.iter().any(|s| matches!(s, Seg::Line(..) | Seg::Cubic(..))) {
+    if !segs
+        .iter()
+        .any(|s| matches!(s, Seg::Line(..) | Seg::Cubic(..)))
+    {
         return Err(err("path data draws nothing".into()));
     }
     Ok(Path(segs))

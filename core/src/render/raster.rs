@@ -18,7 +18,9 @@ pub fn rasterize(scene: &MarkerScene, px_per_mm: f64) -> Result<Pixmap, RenderEr
     // Scale so that the scene spans the whole image exactly even after rounding to pixels.
     let t = Transform::from_scale((w / scene.width_mm) as f32, (h / scene.height_mm) as f32);
     for item in &scene.items {
-        let Some(path) = to_skia(&item.path.0) else { continue };
+        let Some(path) = to_skia(&item.path.0) else {
+            continue;
+        };
         if let Some(c) = item.fill {
             pixmap.fill_path(&path, &paint(c), FillRule::Winding, t, None);
         }
@@ -39,7 +41,9 @@ pub fn rasterize_width(scene: &MarkerScene, width_px: u32) -> Result<Pixmap, Ren
 }
 
 pub fn encode_png(pixmap: &Pixmap) -> Result<Vec<u8>, RenderError> {
-    pixmap.encode_png().map_err(|e| RenderError::Encode(e.to_string()))
+    pixmap
+        .encode_png()
+        .map_err(|e| RenderError::Encode(e.to_string()))
 }
 
 fn paint(c: Rgb) -> Paint<'static> {
@@ -55,7 +59,9 @@ fn to_skia(segs: &[Seg]) -> Option<tiny_skia::Path> {
         match *s {
             Seg::Move(x, y) => pb.move_to(x as f32, y as f32),
             Seg::Line(x, y) => pb.line_to(x as f32, y as f32),
-            Seg::Cubic(a, b, c, d, x, y) => pb.cubic_to(a as f32, b as f32, c as f32, d as f32, x as f32, y as f32),
+            Seg::Cubic(a, b, c, d, x, y) => {
+                pb.cubic_to(a as f32, b as f32, c as f32, d as f32, x as f32, y as f32)
+            }
             Seg::Close => pb.close(),
         }
     }

@@ -23,7 +23,10 @@ pub struct Reader {
 fn sample_offsets() -> impl Iterator<Item = (f64, f64)> {
     (0..K * K).map(|n| {
         let (i, j) = (n % K, n / K);
-        (((i as f64 + 0.5) / K as f64 - 0.5) * SPAN, ((j as f64 + 0.5) / K as f64 - 0.5) * SPAN)
+        (
+            ((i as f64 + 0.5) / K as f64 - 0.5) * SPAN,
+            ((j as f64 + 0.5) / K as f64 - 0.5) * SPAN,
+        )
     })
 }
 
@@ -37,14 +40,27 @@ impl Reader {
             .flat_map(|(c, pattern)| (0..4).map(move |turns| (c, turns, pattern)))
             .map(|(c, turns, pattern)| {
                 let (s, co) = (turns as f64 * std::f64::consts::FRAC_PI_2).sin_cos();
-                let square = |c| Path(vec![Seg::Move(0.0, 0.0), Seg::Line(c, 0.0), Seg::Line(c, c), Seg::Line(0.0, c), Seg::Close]);
+                let square = |c| {
+                    Path(vec![
+                        Seg::Move(0.0, 0.0),
+                        Seg::Line(c, 0.0),
+                        Seg::Line(c, c),
+                        Seg::Line(0.0, c),
+                        Seg::Close,
+                    ])
+                };
                 let mut items = vec![Item {
                     path: square(CELL_PX),
                     fill: Some(family.background()),
                     stroke: None,
                 }];
                 items.extend(pattern.items.iter().map(|it| Item {
-                    path: it.path.map(|x, y| ((co * x - s * y + 0.5) * CELL_PX, (s * x + co * y + 0.5) * CELL_PX)),
+                    path: it.path.map(|x, y| {
+                        (
+                            (co * x - s * y + 0.5) * CELL_PX,
+                            (s * x + co * y + 0.5) * CELL_PX,
+                        )
+                    }),
                     fill: it.fill,
                     stroke: it.stroke.map(|(c, w)| (c, w * CELL_PX)),
                 }));
@@ -71,7 +87,12 @@ impl Reader {
         let mut out = Vec::new();
         for (i, (a, _, ta)) in self.templates.iter().enumerate() {
             for (b, _, tb) in &self.templates[i + 1..] {
-                let ms = ta.iter().zip(tb).map(|(x, y)| (x - y) * (x - y)).sum::<f64>() / ta.len() as f64;
+                let ms = ta
+                    .iter()
+                    .zip(tb)
+                    .map(|(x, y)| (x - y) * (x - y))
+                    .sum::<f64>()
+                    / ta.len() as f64;
                 if a != b && ms < 144.0 && !out.contains(&(*a, *b)) {
                     out.push((*a, *b));
                 }
@@ -91,7 +112,13 @@ impl Reader {
     }
 
     /// The category read at every keypoint of a raster of `scene` (rendered at `px_per_mm`).
-    pub fn read(&self, family: &Family, scene: &MarkerScene, pixmap: &Pixmap, px_per_mm: f64) -> Vec<Option<usize>> {
+    pub fn read(
+        &self,
+        family: &Family,
+        scene: &MarkerScene,
+        pixmap: &Pixmap,
+        px_per_mm: f64,
+    ) -> Vec<Option<usize>> {
         family
             .keypoints()
             .iter()
@@ -104,7 +131,15 @@ impl Reader {
                     .collect();
                 self.templates
                     .iter()
-                    .map(|(c, _, t)| (t.iter().zip(&samples).map(|(a, b)| (a - b) * (a - b)).sum::<f64>(), *c))
+                    .map(|(c, _, t)| {
+                        (
+                            t.iter()
+                                .zip(&samples)
+                                .map(|(a, b)| (a - b) * (a - b))
+                                .sum::<f64>(),
+                            *c,
+                        )
+                    })
                     .min_by(|a, b| a.0.total_cmp(&b.0))
                     .map(|(_, c)| c)
             })
@@ -118,7 +153,9 @@ fn bilinear(pixmap: &Pixmap, x: f64, y: f64) -> f64 {
     let (x, y) = ((x - 0.5).clamp(0.0, w - 1.0), (y - 0.5).clamp(0.0, h - 1.0));
     let (x0, y0) = (x.floor(), y.floor());
     let (fx, fy) = (x - x0, y - y0);
-    let g = |xx: f64, yy: f64| super::raster::gray_at(pixmap, xx.min(w - 1.0) as u32, yy.min(h - 1.0) as u32);
+    let g = |xx: f64, yy: f64| {
+        super::raster::gray_at(pixmap, xx.min(w - 1.0) as u32, yy.min(h - 1.0) as u32)
+    };
     let top = g(x0, y0) * (1.0 - fx) + g(x0 + 1.0, y0) * fx;
     let bottom = g(x0, y0 + 1.0) * (1.0 - fx) + g(x0 + 1.0, y0 + 1.0) * fx;
     top * (1.0 - fy) + bottom * fy

@@ -2,7 +2,7 @@
 
 use super::primitives::{Path, Seg};
 use crate::color::Rgb;
-use crate::family::{Assignment, Family};
+use crate::family::Family;
 use std::collections::{BTreeMap, HashMap};
 
 /// A filled and/or stroked path in scene coordinates (mm, origin top-left, y down).
@@ -28,14 +28,21 @@ pub struct MarkerScene {
 
 impl MarkerScene {
     pub fn to_mm(&self, p: [f64; 2]) -> [f64; 2] {
-        [(p[0] - self.origin[0]) * self.scale, (p[1] - self.origin[1]) * self.scale]
+        [
+            (p[0] - self.origin[0]) * self.scale,
+            (p[1] - self.origin[1]) * self.scale,
+        ]
     }
 }
 
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum RenderError {
     #[error("ID {id} does not exist: {family} has IDs 0 to {last}")]
-    NoSuchId { family: String, id: usize, last: usize },
+    NoSuchId {
+        family: String,
+        id: usize,
+        last: usize,
+    },
     #[error("marker size {0} mm must be a positive number")]
     BadSize(f64),
     #[error("{0}")]
@@ -53,13 +60,21 @@ pub struct SceneOptions {
     pub quiet_zone: Option<f64>,
 }
 
-pub fn marker_scene(family: &Family, id: usize, options: SceneOptions) -> Result<MarkerScene, RenderError> {
-    let categories = family.keypoint_categories(id).ok_or_else(|| RenderError::NoSuchId {
-        family: family.name().to_string(),
-        id,
-        last: family.codebook().len().saturating_sub(1),
-    })?;
-    let side = options.side_mm.unwrap_or(family.spec().print.marker_side_mm);
+pub fn marker_scene(
+    family: &Family,
+    id: usize,
+    options: SceneOptions,
+) -> Result<MarkerScene, RenderError> {
+    let categories = family
+        .keypoint_categories(id)
+        .ok_or_else(|| RenderError::NoSuchId {
+            family: family.name().to_string(),
+            id,
+            last: family.codebook().len().saturating_sub(1),
+        })?;
+    let side = options
+        .side_mm
+        .unwrap_or(family.spec().print.marker_side_mm);
     if !(side.is_finite() && side > 0.0) {
         return Err(RenderError::BadSize(side));
     }
@@ -78,7 +93,13 @@ pub fn marker_scene(family: &Family, id: usize, options: SceneOptions) -> Result
     };
     let (w, h) = (scene.width_mm, scene.height_mm);
     scene.items.push(Item {
-        path: Path(vec![Seg::Move(0.0, 0.0), Seg::Line(w, 0.0), Seg::Line(w, h), Seg::Line(0.0, h), Seg::Close]),
+        path: Path(vec![
+            Seg::Move(0.0, 0.0),
+            Seg::Line(w, 0.0),
+            Seg::Line(w, h),
+            Seg::Line(0.0, h),
+            Seg::Close,
+        ]),
         fill: Some(family.background()),
         stroke: None,
     });
@@ -90,16 +111,18 @@ pub fn marker_scene(family: &Family, id: usize, options: SceneOptions) -> Result
     let mut regions: BTreeMap<(u8, u8, u8), Vec<(i64, i64)>> = BTreeMap::new();
     let mut order: Vec<Rgb> = Vec::new();
     for (k, &cat) in family.keypoints().iter().zip(&categories) {
-        if let (true, Some(colour), Assignment::Fixed(_) | Assignment::Symbol(_)) = (merge, patterns[cat].cell_fill, k.assignment) {
-            if k.size == 1.0 {
-                let cell = ((k.pos[0] - 0.5).round() as i64, (k.pos[1] - 0.5).round() as i64);
-                let key = (colour.0, colour.1, colour.2);
-                if !regions.contains_key(&key) {
-                    order.push(colour);
-                }
-                regions.entry(key).or_default().push(cell);
-            }
+        let Some(colour) = patterns[cat].cell_fill.filter(|_| merge && k.size == 1.0) else {
+            continue;
+        };
+        let cell = (
+            (k.pos[0] - 0.5).round() as i64,
+            (k.pos[1] - 0.5).round() as i64,
+        );
+        let key = (colour.0, colour.1, colour.2);
+        if !regions.contains_key(&key) {
+            order.push(colour);
         }
+        regions.entry(key).or_default().push(cell);
     }
     for colour in order {
         let cells = &regions[&(colour.0, colour.1, colour.2)];
@@ -159,7 +182,9 @@ pub fn trace_cells(cells: &[(i64, i64)]) -> Path {
         let mut prev_dir: Option<V> = None;
         let mut at = start;
         loop {
-            let nexts = outgoing.get_mut(&at).expect("every vertex on a loop has an edge out");
+            let nexts = outgoing
+                .get_mut(&at)
+                .expect("every vertex on a loop has an edge out");
             // Where two cells touch only at a corner, turn right (clockwise) so loops stay simple.
             let pick = match prev_dir {
                 Some(d) if nexts.len() > 1 => {
@@ -183,14 +208,22 @@ pub fn trace_cells(cells: &[(i64, i64)]) -> Path {
         let n = loop_pts.len();
         let corners: Vec<V> = (0..n)
             .filter(|&i| {
-                let (p, c, q) = (loop_pts[(i + n - 1) % n], loop_pts[i], loop_pts[(i + 1) % n]);
+                let (p, c, q) = (
+                    loop_pts[(i + n - 1) % n],
+                    loop_pts[i],
+                    loop_pts[(i + 1) % n],
+                );
                 (c.0 - p.0) * (q.1 - c.1) - (c.1 - p.1) * (q.0 - c.0) != 0
             })
             .map(|i| loop_pts[i])
             .collect();
         for (i, &(x, y)) in corners.iter().enumerate() {
             let (x, y) = (x as f64, y as f64);
-            segs.push(if i == 0 { Seg::Move(x, y) } else { Seg::Line(x, y) });
+            segs.push(if i == 0 {
+                Seg::Move(x, y)
+            } else {
+                Seg::Line(x, y)
+            });
         }
         segs.push(Seg::Close);
     }

@@ -15,9 +15,18 @@ pub struct PageSize {
 }
 
 impl PageSize {
-    pub const A4: PageSize = PageSize { width_mm: 210.0, height_mm: 297.0 };
-    pub const A3: PageSize = PageSize { width_mm: 297.0, height_mm: 420.0 };
-    pub const LETTER: PageSize = PageSize { width_mm: 215.9, height_mm: 279.4 };
+    pub const A4: PageSize = PageSize {
+        width_mm: 210.0,
+        height_mm: 297.0,
+    };
+    pub const A3: PageSize = PageSize {
+        width_mm: 297.0,
+        height_mm: 420.0,
+    };
+    pub const LETTER: PageSize = PageSize {
+        width_mm: 215.9,
+        height_mm: 279.4,
+    };
 
     /// `a4`, `a3`, `letter`, or `WIDTHxHEIGHT` in mm (e.g. `100x150`).
     pub fn parse(text: &str) -> Result<Self, String> {
@@ -26,13 +35,23 @@ impl PageSize {
             "a3" => Ok(Self::A3),
             "letter" => Ok(Self::LETTER),
             other => {
-                let (w, h) = other
-                    .split_once('x')
-                    .ok_or_else(|| format!("page {text:?}: use a4, a3, letter or WIDTHxHEIGHT in mm"))?;
-                let parse = |s: &str| s.trim().parse::<f64>().ok().filter(|v| v.is_finite() && *v >= 10.0 && *v <= 5000.0);
+                let (w, h) = other.split_once('x').ok_or_else(|| {
+                    format!("page {text:?}: use a4, a3, letter or WIDTHxHEIGHT in mm")
+                })?;
+                let parse = |s: &str| {
+                    s.trim()
+                        .parse::<f64>()
+                        .ok()
+                        .filter(|v| v.is_finite() && *v >= 10.0 && *v <= 5000.0)
+                };
                 match (parse(w), parse(h)) {
-                    (Some(w), Some(h)) => Ok(Self { width_mm: w, height_mm: h }),
-                    _ => Err(format!("page {text:?}: width and height must be 10 to 5000 mm")),
+                    (Some(w), Some(h)) => Ok(Self {
+                        width_mm: w,
+                        height_mm: h,
+                    }),
+                    _ => Err(format!(
+                        "page {text:?}: width and height must be 10 to 5000 mm"
+                    )),
                 }
             }
         }
@@ -95,7 +114,11 @@ const SCALE_BAR_MM: f64 = 100.0;
 pub fn parse_ids(text: &str) -> Result<Vec<usize>, String> {
     let mut ids = Vec::new();
     for part in text.split(',').map(str::trim).filter(|p| !p.is_empty()) {
-        let num = |s: &str| s.trim().parse::<usize>().map_err(|_| format!("{s:?} in {text:?} is not an ID"));
+        let num = |s: &str| {
+            s.trim()
+                .parse::<usize>()
+                .map_err(|_| format!("{s:?} in {text:?} is not an ID"))
+        };
         match part.split_once('-') {
             Some((a, b)) => {
                 let (a, b) = (num(a)?, num(b)?);
@@ -119,7 +142,8 @@ pub fn parse_ids(text: &str) -> Result<Vec<usize>, String> {
 pub fn layout_sheet(family: &Family, params: &SheetParams) -> Result<Sheet, RenderError> {
     let page = params.page;
     let bad = |m: String| RenderError::Layout(m);
-    if !(params.margin_mm.is_finite() && params.margin_mm >= 0.0) || !(params.spacing_mm.is_finite() && params.spacing_mm >= 0.0) {
+    let non_negative = |v: f64| v.is_finite() && v >= 0.0;
+    if !non_negative(params.margin_mm) || !non_negative(params.spacing_mm) {
         return Err(bad("margins and spacing must be ≥ 0 mm".into()));
     }
     if params.ids.is_empty() {
@@ -142,7 +166,11 @@ pub fn layout_sheet(family: &Family, params: &SheetParams) -> Result<Sheet, Rend
     let tile_h = probe.height_mm + if params.labels { LABEL_MM } else { 0.0 };
     let usable_w = page.width_mm - 2.0 * params.margin_mm;
     let usable_h = page.height_mm - 2.0 * params.margin_mm - HEADER_MM - FOOTER_MM;
-    let fit = |usable: f64, tile: f64| ((usable + params.spacing_mm) / (tile + params.spacing_mm) + 1e-9).floor().max(0.0) as usize;
+    let fit = |usable: f64, tile: f64| {
+        ((usable + params.spacing_mm) / (tile + params.spacing_mm) + 1e-9)
+            .floor()
+            .max(0.0) as usize
+    };
     let (cols, rows) = (fit(usable_w, tile_w), fit(usable_h, tile_h));
     if cols == 0 || rows == 0 {
         return Err(bad(format!(
@@ -177,7 +205,9 @@ pub fn layout_sheet(family: &Family, params: &SheetParams) -> Result<Sheet, Rend
         cut_marks = false;
     }
     if usable_w < SCALE_BAR_MM {
-        warnings.push(format!("the page is too narrow for the {SCALE_BAR_MM} mm scale bar; it is shortened"));
+        warnings.push(format!(
+            "the page is too narrow for the {SCALE_BAR_MM} mm scale bar; it is shortened"
+        ));
     }
 
     let per_page = cols * rows;
@@ -192,7 +222,10 @@ pub fn layout_sheet(family: &Family, params: &SheetParams) -> Result<Sheet, Rend
         let mut doc = Document::new()
             .set("width", format!("{}mm", num(page.width_mm)))
             .set("height", format!("{}mm", num(page.height_mm)))
-            .set("viewBox", format!("0 0 {} {}", num(page.width_mm), num(page.height_mm)))
+            .set(
+                "viewBox",
+                format!("0 0 {} {}", num(page.width_mm), num(page.height_mm)),
+            )
             .add(
                 Rectangle::new()
                     .set("width", num(page.width_mm))
@@ -209,7 +242,14 @@ pub fn layout_sheet(family: &Family, params: &SheetParams) -> Result<Sheet, Rend
                 .set("class", "marker")
                 .set("id", format!("marker-{id}"));
             if params.labels {
-                g = g.add(label(family, id, params.marker_side_mm, x, y + scene.height_mm, tile_w));
+                g = g.add(label(
+                    family,
+                    id,
+                    params.marker_side_mm,
+                    x,
+                    y + scene.height_mm,
+                    tile_w,
+                ));
             }
             if cut_marks {
                 // Around the marker and its label, so a cut-out marker keeps its ID.
@@ -217,7 +257,11 @@ pub fn layout_sheet(family: &Family, params: &SheetParams) -> Result<Sheet, Rend
             }
             doc = doc.add(g);
         }
-        doc = doc.add(scale_bar(params.margin_mm, page.height_mm - params.margin_mm - 6.0, usable_w));
+        doc = doc.add(scale_bar(
+            params.margin_mm,
+            page.height_mm - params.margin_mm - 6.0,
+            usable_w,
+        ));
         pages.push(doc.to_string());
     }
     Ok(Sheet {
@@ -264,17 +308,30 @@ fn header(family: &Family, params: &SheetParams, page: usize, pages: usize) -> G
 }
 
 fn label(family: &Family, id: usize, side: f64, x: f64, y: f64, width: f64) -> Text {
-    text(x + width / 2.0, y + 3.2, 2.6, format!("{} · ID {id} · {side:.1} mm", family.name()))
-        .set("text-anchor", "middle")
-        .set("class", "label")
+    text(
+        x + width / 2.0,
+        y + 3.2,
+        2.6,
+        format!("{} · ID {id} · {side:.1} mm", family.name()),
+    )
+    .set("text-anchor", "middle")
+    .set("class", "label")
 }
 
 /// Corner marks in the gap around a tile (marker, quiet zone and label), never over it.
 fn cut_mark_group(w: f64, h: f64, x: f64, y: f64, spacing: f64) -> Group {
     let gap = 0.5;
     let len = (spacing / 2.0 - gap).clamp(0.5, 4.0);
-    let mut g = Group::new().set("class", "cut-marks").set("stroke", "#808080").set("stroke-width", "0.15");
-    for (cx, cy, sx, sy) in [(x, y, -1.0, -1.0), (x + w, y, 1.0, -1.0), (x + w, y + h, 1.0, 1.0), (x, y + h, -1.0, 1.0)] {
+    let mut g = Group::new()
+        .set("class", "cut-marks")
+        .set("stroke", "#808080")
+        .set("stroke-width", "0.15");
+    for (cx, cy, sx, sy) in [
+        (x, y, -1.0, -1.0),
+        (x + w, y, 1.0, -1.0),
+        (x + w, y + h, 1.0, 1.0),
+        (x, y + h, -1.0, 1.0),
+    ] {
         // One horizontal and one vertical tick, each continuing a side of the marker outward.
         g = g
             .add(line(cx + sx * gap, cy, cx + sx * (gap + len), cy))
@@ -284,23 +341,31 @@ fn cut_mark_group(w: f64, h: f64, x: f64, y: f64, spacing: f64) -> Group {
 }
 
 fn line(x1: f64, y1: f64, x2: f64, y2: f64) -> Line {
-    Line::new().set("x1", num(x1)).set("y1", num(y1)).set("x2", num(x2)).set("y2", num(y2))
+    Line::new()
+        .set("x1", num(x1))
+        .set("y1", num(y1))
+        .set("x2", num(x2))
+        .set("y2", num(y2))
 }
 
 fn scale_bar(x: f64, y: f64, usable_w: f64) -> Group {
-    let length = if usable_w >= SCALE_BAR_MM { SCALE_BAR_MM } else { (usable_w / 10.0).floor() * 10.0 };
-    let mut g = Group::new()
-        .set("class", "scale-bar")
-        .add(
-            Rectangle::new()
-                .set("x", num(x))
-                .set("y", num(y - 1.0))
-                .set("width", num(length))
-                .set("height", "1")
-                .set("fill", "#000000"),
-        );
+    let length = if usable_w >= SCALE_BAR_MM {
+        SCALE_BAR_MM
+    } else {
+        (usable_w / 10.0).floor() * 10.0
+    };
+    let mut g = Group::new().set("class", "scale-bar").add(
+        Rectangle::new()
+            .set("x", num(x))
+            .set("y", num(y - 1.0))
+            .set("width", num(length))
+            .set("height", "1")
+            .set("fill", "#000000"),
+    );
     let ticks = (length / 10.0).round() as usize;
-    let mut ticks_group = Group::new().set("stroke", "#000000").set("stroke-width", "0.2");
+    let mut ticks_group = Group::new()
+        .set("stroke", "#000000")
+        .set("stroke-width", "0.2");
     for i in 0..=ticks {
         let tx = x + i as f64 * 10.0;
         ticks_group = ticks_group.add(line(tx, y - 3.0, tx, y - 1.0));
@@ -332,7 +397,13 @@ mod tests {
     #[test]
     fn page_sizes() {
         assert_eq!(PageSize::parse("A4").unwrap(), PageSize::A4);
-        assert_eq!(PageSize::parse("100x150").unwrap(), PageSize { width_mm: 100.0, height_mm: 150.0 });
+        assert_eq!(
+            PageSize::parse("100x150").unwrap(),
+            PageSize {
+                width_mm: 100.0,
+                height_mm: 150.0
+            }
+        );
         assert!(PageSize::parse("1x1").is_err());
         assert_eq!(PageSize::A4.landscape().width_mm, 297.0);
     }

@@ -65,7 +65,10 @@ pub fn marker_svg(scene: &MarkerScene) -> String {
     let doc = Document::new()
         .set("width", format!("{}mm", num(scene.width_mm)))
         .set("height", format!("{}mm", num(scene.height_mm)))
-        .set("viewBox", format!("0 0 {} {}", num(scene.width_mm), num(scene.height_mm)))
+        .set(
+            "viewBox",
+            format!("0 0 {} {}", num(scene.width_mm), num(scene.height_mm)),
+        )
         .add(marker_group(scene, 0.0, 0.0).set("class", "marker"));
     doc.to_string()
 }
