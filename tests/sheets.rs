@@ -230,3 +230,96 @@ fn letter_and_custom_pages() {
         "{b:?}"
     );
 }
+
+/// Reads a binary PGM (P5, 8-bit) as written by `pdftoppm -gray`.
+fn read_pgm(bytes: &[u8]) -> (usize, usize, Vec<u8>) {
+    let mut fields = Vec::new();
+    let mut i = 0;
+    while fields.len() < 4 {
+        while bytes[i].is_ascii_whitespace() {
+            i += 1;
+        }
+        let start = i;
+        while !bytes[i].is_ascii_whitespace() {
+            i += 1;
+        }
+        fields.push(String::from_utf8_lossy(&bytes[start..i]).to_string());
+    }
+    assert_eq!(fields[0], "P5");
+    let (w, h) = (fields[1].parse().unwrap(), fields[2].parse().unwrap());
+    (w, h, bytes[i + 1..].to_vec())
+}
+
+/// The PDF itself, rasterised by an independent renderer (poppler) at 50 px/mm: the marker's top
+/// border row, integrated over its anti-aliased edges, is 40 mm long.
+#[test]
+fn pdf_marker_measures_the_requested_side_when_rasterised_by_poppler() {
+    if std::process::Command::new("pdftoppm")
+        .arg("-v")
+        .output()
+        .is_err()
+    {
+        eprintln!("pdftoppm (Debian poppler-utils) is not installed: PDF raster check skipped");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    for out in ["one.pdf", "one.svg"] {
+        tagsmith(
+            dir.path(),
+            &[
+                "sheet",
+                "apriltag-36h11",
+                "--ids",
+                "0",
+                "--size-mm",
+                "40",
+                "-o",
+                out,
+            ],
+        )
+        .ok();
+    }
+    let svg = std::fs::read_to_string(dir.path().join("one.svg")).unwrap();
+    let b = bbox(black_paths_after(&svg, "id=\"marker-0\"")[0]);
+    const PX_PER_MM: f64 = 50.0;
+    let (x0, y0) = ((b[0] - 2.0) * PX_PER_MM, (b[1] - 2.0) * PX_PER_MM);
+    let size = 44.0 * PX_PER_MM;
+    let status = std::process::Command::new("pdftoppm")
+        .args([
+            "-r",
+            "1270",
+            "-gray",
+            "-f",
+            "1",
+            "-l",
+            "1",
+            "-x",
+            &format!("{}", x0 as i64),
+            "-y",
+            &format!("{}", y0 as i64),
+        ])
+        .args([
+            "-W",
+            &format!("{}", size as i64),
+            "-H",
+            &format!("{}", size as i64),
+            "one.pdf",
+            "crop",
+        ])
+        .current_dir(dir.path())
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let (w, _, pixels) = read_pgm(&std::fs::read(dir.path().join("crop-1.pgm")).unwrap());
+    // The middle of the top border row (cells are 5 mm), in the crop's pixel rows.
+    let row = ((b[1] + 2.5) * PX_PER_MM - (y0 as i64) as f64) as usize;
+    let darkness: f64 = pixels[row * w..(row + 1) * w]
+        .iter()
+        .map(|&v| (255 - v) as f64 / 255.0)
+        .sum();
+    let measured = darkness / PX_PER_MM;
+    assert!(
+        (measured - 40.0).abs() < 0.01,
+        "the border row measures {measured} mm"
+    );
+}

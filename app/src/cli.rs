@@ -198,7 +198,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Validate { file } => validate(&file),
         Command::ExportOpencv { family, output } => export_opencv(&family, &output),
         Command::Schema => {
-            print!("{}", family::schema_json());
+            print_quietly(&family::schema_json());
             Ok(())
         }
     }
@@ -234,8 +234,9 @@ fn extension(path: &Path) -> String {
 }
 
 fn families() -> Result<()> {
-    println!(
-        "{:<24} {:<6} {:>9} {:>3} {:>6} {:>5}  title",
+    use std::fmt::Write as _;
+    let mut out = format!(
+        "{:<24} {:<6} {:>9} {:>3} {:>6} {:>5}  title\n",
         "name", "layout", "keypoints", "q", "codes", "d_min"
     );
     for name in tagsmith::builtin::names() {
@@ -245,7 +246,8 @@ fn families() -> Result<()> {
             .codebook
             .min_distance
             .map_or("?".into(), |d| d.to_string());
-        println!(
+        let _ = writeln!(
+            out,
             "{:<24} {:<6} {:>9} {:>3} {:>6} {:>5}  {}",
             name,
             if f.is_grid() { "grid" } else { "rings" },
@@ -256,7 +258,14 @@ fn families() -> Result<()> {
             f.title()
         );
     }
+    print_quietly(&out);
     Ok(())
+}
+
+/// Prints to stdout, ending quietly when the reader has gone (`tagsmith families | head`).
+fn print_quietly(text: &str) {
+    use std::io::Write as _;
+    let _ = std::io::stdout().lock().write_all(text.as_bytes());
 }
 
 fn render(a: RenderArgs) -> Result<()> {

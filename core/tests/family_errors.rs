@@ -134,10 +134,19 @@ fn typos_and_wrong_types_name_the_field() {
     let mut f = builtin("apriltag-36h11");
     f["print"]["marker_side_mm"] = json!("forty");
     assert_error(&f, "print.marker_side_mm", "invalid type: string \"forty\"");
-    // Inside the tagged layout, serde can point at the layout only, but names the bad value.
     let mut f = builtin("apriltag-36h11");
     f["layout"]["size"] = json!("eight");
-    assert_error(&f, "layout", "invalid type: string \"eight\", expected u32");
+    assert_error(
+        &f,
+        "layout.size",
+        "invalid type: string \"eight\", expected u32",
+    );
+    let mut f = builtin("runetag");
+    f["layout"]["slots"] = json!(-3);
+    assert_error(&f, "layout.slots", "invalid value: integer `-3`");
+    let mut f = builtin("runetag");
+    f["layout"]["type"] = json!("spiral");
+    assert_error(&f, "layout.type", "unknown variant `spiral`");
     let mut f = builtin("apriltag-36h11");
     f["format"] = json!(2);
     assert_error(&f, "format", "unsupported format 2");

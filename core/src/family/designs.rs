@@ -97,12 +97,12 @@ fn grid_spec(
         description: description.into(),
         source: source.into(),
         background: WHITE.into(),
-        layout: Layout::Grid {
+        layout: Layout::Grid(GridLayout {
             size: cells.len() as u32,
             cells,
             legend,
             quiet_zone: 1.0,
-        },
+        }),
         extra: vec![],
         categories,
         keypoint_set: KeypointSet::All,
@@ -203,7 +203,7 @@ pub fn shaped_36h11(
         category(zero.0, Role::Symbol(0), zero.1),
         category(one.0, Role::Symbol(1), one.1),
     ];
-    if let Layout::Grid { legend: l, .. } = &mut spec.layout {
+    if let Layout::Grid(GridLayout { legend: l, .. }) = &mut spec.layout {
         *l = legend(&[("b", "frame")]);
     }
     Ok(spec)
@@ -340,13 +340,13 @@ pub fn quaternary_6x6() -> Result<FamilySpec, String> {
 }
 
 fn runetag_layout() -> Layout {
-    Layout::Rings {
+    Layout::Rings(RingsLayout {
         radii: vec![2.0 / 3.0, 5.0 / 6.0, 1.0],
         slots: 43,
         dot_radius_ratio: 1.0 / 17.8,
         start_angle_deg: -90.0,
         quiet_zone: 0.2,
-    }
+    })
 }
 
 /// RuneTag-like rings: 43 slots × 3 rings, dot = 1, no dot = 0, every slot a keypoint.

@@ -1,6 +1,6 @@
 //! Keypoint positions and the layout's rotational symmetries.
 
-use super::spec::{KeypointSet, Layout};
+use super::spec::{GridLayout, KeypointSet, Layout, RingsLayout};
 use super::{Assignment, Family};
 use std::collections::HashMap;
 
@@ -53,11 +53,11 @@ pub struct Rotation {
 /// Rotation candidates of a layout: (centre, angles in degrees).
 pub(super) fn rotation_candidates(layout: &Layout) -> ([f64; 2], Vec<f64>) {
     match layout {
-        Layout::Grid { size, .. } => {
+        Layout::Grid(GridLayout { size, .. }) => {
             let c = *size as f64 / 2.0;
             ([c, c], vec![0.0, 90.0, 180.0, 270.0])
         }
-        Layout::Rings { slots, .. } => {
+        Layout::Rings(RingsLayout { slots, .. }) => {
             let step = 360.0 / *slots as f64;
             ([0.0, 0.0], (0..*slots).map(|k| k as f64 * step).collect())
         }
@@ -147,7 +147,7 @@ pub(super) fn regressed_keypoints(family: &Family) -> Vec<usize> {
             let e = family.extent();
             let kps = family.keypoints();
             match family.spec().layout {
-                Layout::Grid { .. } => (0..n)
+                Layout::Grid(_) => (0..n)
                     .filter(|&i| {
                         let [x, y] = kps[i].pos;
                         let on = |v: f64, lo: f64, hi: f64| {
@@ -161,7 +161,7 @@ pub(super) fn regressed_keypoints(family: &Family) -> Vec<usize> {
                         }
                     })
                     .collect(),
-                Layout::Rings { ref radii, .. } => {
+                Layout::Rings(RingsLayout { ref radii, .. }) => {
                     let outer = radii.iter().copied().fold(0.0, f64::max);
                     (0..n)
                         .filter(|&i| {

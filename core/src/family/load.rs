@@ -1,6 +1,6 @@
 //! Reading and writing family JSON.
 
-use super::spec::FamilySpec;
+use super::spec::{FamilySpec, GridLayout, RingsLayout};
 use super::{Family, FamilyError, Problem};
 use std::path::Path;
 
@@ -22,9 +22,36 @@ pub fn from_json_str(text: &str) -> Result<Family, FamilyError> {
     let spec: FamilySpec = serde_path_to_error::deserialize(de).map_err(|e| {
         let path = e.path().to_string();
         let path = if path == "." { String::new() } else { path };
-        FamilyError::new(vec![Problem::new(path, e.into_inner().to_string())])
+        let problem = match path.as_str() {
+            "layout" => layout_problem(text),
+            _ => None,
+        };
+        FamilyError::new(vec![
+            problem.unwrap_or_else(|| Problem::new(path, e.into_inner().to_string()))
+        ])
     })?;
     Family::from_spec(spec)
+}
+
+/// serde reads a tagged enum through a buffer and loses the path inside it; reading the layout
+/// object again as its variant's struct finds the field that is wrong.
+fn layout_problem(text: &str) -> Option<Problem> {
+    let root: serde_json::Value = serde_json::from_str(text).ok()?;
+    let mut layout = root.get("layout")?.clone();
+    let kind = layout.as_object_mut()?.remove("type")?;
+    let result = match kind.as_str()? {
+        "grid" => serde_path_to_error::deserialize::<_, GridLayout>(layout).map(drop),
+        "rings" => serde_path_to_error::deserialize::<_, RingsLayout>(layout).map(drop),
+        _ => return None,
+    };
+    let e = result.err()?;
+    let inner = e.path().to_string();
+    let path = if inner == "." {
+        "layout".to_string()
+    } else {
+        format!("layout.{inner}")
+    };
+    Some(Problem::new(path, e.into_inner().to_string()))
 }
 
 /// Reads, parses and validates a family file; errors name the file.

@@ -133,7 +133,7 @@ impl Family {
         self.keypoints.iter().map(|k| k.size).fold(0.0, f64::max)
     }
     pub fn is_grid(&self) -> bool {
-        matches!(self.spec.layout, spec::Layout::Grid { .. })
+        matches!(self.spec.layout, spec::Layout::Grid(_))
     }
 
     /// The category drawn at every keypoint for code `id`.

@@ -52,39 +52,47 @@ fn default_background() -> String {
 /// Where the keypoints are. Positions are in *marker units*: cells for `grid` (origin at the grid's
 /// top-left corner, y down), outer-ring radii for `rings` (origin at the centre, y down).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
-#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+#[serde(tag = "type", rename_all = "snake_case")]
 pub enum Layout {
-    /// N×N square cells; every cell centre that is not `-` is a keypoint.
-    Grid {
-        /// Cells per side (1–32).
-        size: u32,
-        /// One string per row, one character per cell: `.` = a code symbol (row-major code order),
-        /// `-` = no keypoint (nothing drawn), any other character = the fixed category named in
-        /// `legend`.
-        cells: Vec<String>,
-        /// Character → category name for fixed cells.
-        #[serde(default)]
-        legend: BTreeMap<String, String>,
-        /// White margin around the grid, in cells.
-        #[serde(default = "default_quiet_zone")]
-        quiet_zone: f64,
-    },
-    /// Concentric rings of dot slots (RuneTag-like). Every slot is a code symbol keypoint; code
-    /// order is slot-major (keypoint k = slot × rings + ring, inner ring first), slots clockwise.
-    Rings {
-        /// Ring radii in outer-ring units, inner first; the largest should be 1.
-        radii: Vec<f64>,
-        /// Slots per ring (the same on every ring, so that a cyclic slot shift is a rotation).
-        slots: u32,
-        /// Dot radius as a fraction of its ring's radius (RuneTag: 1/17.8).
-        dot_radius_ratio: f64,
-        /// Angle of slot 0, degrees clockwise from +x (y down): -90 = top.
-        #[serde(default = "default_start_angle")]
-        start_angle_deg: f64,
-        /// Margin around the outermost dots, in outer-ring radii.
-        #[serde(default = "default_ring_quiet_zone")]
-        quiet_zone: f64,
-    },
+    Grid(GridLayout),
+    Rings(RingsLayout),
+}
+
+/// N×N square cells; every cell centre that is not `-` is a keypoint.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct GridLayout {
+    /// Cells per side (1–32).
+    pub size: u32,
+    /// One string per row, one character per cell: `.` = a code symbol (row-major code order),
+    /// `-` = no keypoint (nothing drawn), any other character = the fixed category named in
+    /// `legend`.
+    pub cells: Vec<String>,
+    /// Character → category name for fixed cells.
+    #[serde(default)]
+    pub legend: BTreeMap<String, String>,
+    /// White margin around the grid, in cells.
+    #[serde(default = "default_quiet_zone")]
+    pub quiet_zone: f64,
+}
+
+/// Concentric rings of dot slots (RuneTag-like). Every slot is a code symbol keypoint; code order
+/// is slot-major (keypoint k = slot × rings + ring, inner ring first), slots clockwise.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct RingsLayout {
+    /// Ring radii in outer-ring units, inner first; the largest should be 1.
+    pub radii: Vec<f64>,
+    /// Slots per ring (the same on every ring, so that a cyclic slot shift is a rotation).
+    pub slots: u32,
+    /// Dot radius as a fraction of its ring's radius (RuneTag: 1/17.8).
+    pub dot_radius_ratio: f64,
+    /// Angle of slot 0, degrees clockwise from +x (y down): -90 = top.
+    #[serde(default = "default_start_angle")]
+    pub start_angle_deg: f64,
+    /// Margin around the outermost dots, in outer-ring radii.
+    #[serde(default = "default_ring_quiet_zone")]
+    pub quiet_zone: f64,
 }
 
 fn default_quiet_zone() -> f64 {

@@ -5,7 +5,7 @@
 //! against a layout that failed).
 
 use super::geometry::{rotation_candidates, symmetries, Extent, Keypoint};
-use super::spec::{FamilySpec, KeypointSet, Layout, Role, FORMAT_VERSION};
+use super::spec::{FamilySpec, GridLayout, KeypointSet, Layout, RingsLayout, Role, FORMAT_VERSION};
 use super::{Assignment, Family, FamilyError, Problem};
 use crate::codebook::Codebook;
 use crate::color::Rgb;
@@ -213,12 +213,12 @@ fn layout_keypoints(
         max: [0.0; 2],
     };
     let (mut extent, quiet_zone) = match &spec.layout {
-        Layout::Grid {
+        Layout::Grid(GridLayout {
             size,
             cells,
             legend,
             quiet_zone,
-        } => {
+        }) => {
             let n = *size;
             if n == 0 || n > MAX_GRID {
                 problems.push(Problem::new(
@@ -296,13 +296,13 @@ fn layout_keypoints(
                 qz,
             )
         }
-        Layout::Rings {
+        Layout::Rings(RingsLayout {
             radii,
             slots,
             dot_radius_ratio,
             start_angle_deg,
             quiet_zone,
-        } => {
+        }) => {
             let ok = check_rings(radii, *slots, *dot_radius_ratio, *start_angle_deg, problems);
             if !ok {
                 return (keypoints, empty, 0.0);
@@ -512,7 +512,7 @@ fn check_keypoint_set(spec: &FamilySpec, n: usize, problems: &mut Vec<Problem>) 
                 problems.push(Problem::new("keypoint_set.custom", "the list is empty"));
             }
         }
-        KeypointSet::Corners if !matches!(spec.layout, Layout::Grid { .. }) => {
+        KeypointSet::Corners if !matches!(spec.layout, Layout::Grid(_)) => {
             problems.push(Problem::new(
                 "keypoint_set",
                 "\"corners\" needs a grid layout",
