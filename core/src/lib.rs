@@ -2,13 +2,16 @@
 //!
 //! The pipeline, one module per stage: [`family`] (the data model, JSON I/O and validation) →
 //! [`codebook`] (code tables, decoding, generation) → [`render`] (vector scenes, SVG, rasters,
-//! sheets, PDF). [`builtin`] holds the families shipped in `families/`.
+//! sheets, PDF) → [`geometry`] (homographies, warping, cameras) → [`pose`] (planar PnP).
+//! [`builtin`] holds the families shipped in `families/`.
 
 pub mod builtin;
 pub mod codebook;
 pub mod color;
 pub mod family;
+pub mod geometry;
 pub mod io;
+pub mod pose;
 pub mod render;
 
 pub use family::{Family, FamilyError};

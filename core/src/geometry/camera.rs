@@ -1,0 +1,129 @@
+//! Pinhole camera with OpenCV's radial–tangential distortion (k1, k2, p1, p2, k3), so that
+//! calibrations from OpenCV import as they are. Pixel coordinates follow OpenCV: the centre of the
+//! top-left pixel is (0, 0).
+
+use super::GeometryError;
+use serde::{Deserialize, Serialize};
+
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Camera {
+    pub width: u32,
+    pub height: u32,
+    pub fx: f64,
+    pub fy: f64,
+    pub cx: f64,
+    pub cy: f64,
+    /// OpenCV order: k1, k2, p1, p2, k3.
+    #[serde(default)]
+    pub distortion: [f64; 5],
+}
+
+impl Camera {
+    /// A distortion-free guess from the image size and the diagonal field of view, principal point
+    /// at the image centre (the paper's benchmark camera: 1280×960, 98°).
+    pub fn from_diagonal_fov(width: u32, height: u32, fov_deg: f64) -> Result<Self, GeometryError> {
+        if width == 0 || height == 0 {
+            return Err(GeometryError::BadCamera("the image size must be positive"));
+        }
+        if !(fov_deg.is_finite() && fov_deg > 0.0 && fov_deg < 180.0) {
+            return Err(GeometryError::BadCamera(
+                "the field of view must be between 0° and 180°",
+            ));
+        }
+        let diagonal = (width as f64).hypot(height as f64);
+        let f = diagonal / 2.0 / (fov_deg.to_radians() / 2.0).tan();
+        Ok(Self {
+            width,
+            height,
+            fx: f,
+            fy: f,
+            cx: (width as f64 - 1.0) / 2.0,
+            cy: (height as f64 - 1.0) / 2.0,
+            distortion: [0.0; 5],
+        })
+    }
+
+    pub fn validate(&self) -> Result<(), GeometryError> {
+        let finite = [self.fx, self.fy, self.cx, self.cy]
+            .iter()
+            .chain(&self.distortion)
+            .all(|v| v.is_finite());
+        if !finite {
+            return Err(GeometryError::BadCamera(
+                "a parameter is not a finite number",
+            ));
+        }
+        if !(self.fx > 0.0 && self.fy > 0.0) {
+            return Err(GeometryError::BadCamera("focal lengths must be positive"));
+        }
+        Ok(())
+    }
+
+    /// Applies the distortion to normalised image coordinates (x/z, y/z).
+    pub fn distort(&self, p: [f64; 2]) -> [f64; 2] {
+        let [k1, k2, p1, p2, k3] = self.distortion;
+        let [x, y] = p;
+        let r2 = x * x + y * y;
+        let radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
+        [
+            x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x),
+            y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y,
+        ]
+    }
+
+    /// Camera-frame point (metres, z forward) → pixel.
+    pub fn project(&self, p: [f64; 3]) -> [f64; 2] {
+        let d = self.distort([p[0] / p[2], p[1] / p[2]]);
+        [self.fx * d[0] + self.cx, self.fy * d[1] + self.cy]
+    }
+
+    /// Pixel → undistorted normalised coordinates, by fixed-point iteration on the distortion
+    /// model (as OpenCV's `undistortPoints`), refined until it reprojects to 1e-12.
+    pub fn normalise(&self, pixel: [f64; 2]) -> [f64; 2] {
+        let target = [
+            (pixel[0] - self.cx) / self.fx,
+            (pixel[1] - self.cy) / self.fy,
+        ];
+        if self.distortion == [0.0; 5] {
+            return target;
+        }
+        let mut p = target;
+        for _ in 0..50 {
+            let d = self.distort(p);
+            let err = [d[0] - target[0], d[1] - target[1]];
+            p = [p[0] - err[0], p[1] - err[1]];
+            if err[0].abs().max(err[1].abs()) < 1e-12 {
+                break;
+            }
+        }
+        p
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_papers_camera_has_the_right_focal_length() {
+        let c = Camera::from_diagonal_fov(1280, 960, 98.0).unwrap();
+        // half diagonal 800 px over tan(49°)
+        assert!((c.fx - 800.0 / 49f64.to_radians().tan()).abs() < 1e-9);
+        assert!(Camera::from_diagonal_fov(1280, 960, 180.0).is_err());
+        assert!(Camera::from_diagonal_fov(0, 960, 90.0).is_err());
+    }
+
+    #[test]
+    fn normalise_inverts_project_with_distortion() {
+        let mut c = Camera::from_diagonal_fov(640, 480, 90.0).unwrap();
+        c.distortion = [-0.28, 0.09, 0.001, -0.0005, -0.01];
+        for p in [[0.1, -0.05, 1.0], [-0.3, 0.2, 0.8], [0.0, 0.0, 2.0]] {
+            let px = c.project(p);
+            let n = c.normalise(px);
+            assert!(
+                (n[0] - p[0] / p[2]).abs() < 1e-9 && (n[1] - p[1] / p[2]).abs() < 1e-9,
+                "{n:?}"
+            );
+        }
+    }
+}
