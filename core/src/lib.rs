@@ -13,5 +13,6 @@ pub mod geometry;
 pub mod io;
 pub mod pose;
 pub mod render;
+pub mod synth;
 
 pub use family::{Family, FamilyError};

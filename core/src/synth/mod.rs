@@ -1,0 +1,606 @@
+//! On-the-fly training images with exact ground truth (DESIGN §4), deterministic per seed.
+//!
+//! Three modes: `quad` (stage-1 scenes, markers placed by random quadrilaterals), `camera` (a
+//! pinhole camera at a random 6-DoF pose; ground-truth pose included) and `patch` (stage-2 patches:
+//! the ROI mapped to a random quad ((a1,a2),(1−a3,a4),(1−a5,1−a6),(a7,1−a8)), a_i ~ U[0.05, 0.25]).
+
+pub mod augment;
+mod background;
+pub mod contact;
+
+use crate::family::Family;
+use crate::geometry::{Camera, GrayImage, Homography};
+use crate::pose::{marker_plane_points, Pose};
+use crate::render::{marker_scene, raster, SceneOptions};
+use augment::{draw, AugmentRanges};
+use nalgebra::{Matrix3, Rotation3, Vector3};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+/// A float image, 0 = black, 1 = white; pixel centres at integer coordinates.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Canvas {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<f32>,
+}
+
+impl Canvas {
+    pub fn new(width: u32, height: u32, value: f32) -> Self {
+        Self {
+            width,
+            height,
+            pixels: vec![value; width as usize * height as usize],
+        }
+    }
+    pub fn get(&self, x: u32, y: u32) -> f32 {
+        self.pixels[y as usize * self.width as usize + x as usize]
+    }
+    pub fn set(&mut self, x: u32, y: u32, v: f32) {
+        self.pixels[y as usize * self.width as usize + x as usize] = v;
+    }
+    /// Bilinear sample, clamped at the borders.
+    pub fn sample(&self, x: f32, y: f32) -> f32 {
+        let (w, h) = (self.width as f32 - 1.0, self.height as f32 - 1.0);
+        let (x, y) = (x.clamp(0.0, w), y.clamp(0.0, h));
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let (x1, y1) = ((x0 + 1.0).min(w), (y0 + 1.0).min(h));
+        let g = |xx: f32, yy: f32| self.get(xx as u32, yy as u32);
+        (g(x0, y0) * (1.0 - fx) + g(x1, y0) * fx) * (1.0 - fy)
+            + (g(x0, y1) * (1.0 - fx) + g(x1, y1) * fx) * fy
+    }
+    pub fn clamp(&mut self) {
+        self.pixels.iter_mut().for_each(|p| *p = p.clamp(0.0, 1.0));
+    }
+    pub fn to_gray(&self) -> GrayImage {
+        GrayImage {
+            width: self.width,
+            height: self.height,
+            pixels: self
+                .pixels
+                .iter()
+                .map(|p| (p.clamp(0.0, 1.0) * 255.0 + 0.5) as u8)
+                .collect(),
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Mode {
+    Quad,
+    Camera,
+    Patch,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SynthConfig {
+    pub mode: Mode,
+    pub width: u32,
+    pub height: u32,
+    /// Markers per scene (quad and camera modes).
+    pub markers: [u32; 2],
+    /// Camera mode: diagonal field of view, marker side (m), distance (m) and view angle (deg).
+    pub fov_deg: f64,
+    pub side_m: [f64; 2],
+    pub distance_m: [f64; 2],
+    pub view_angle_deg: [f64; 2],
+    pub augment: AugmentRanges,
+}
+
+impl SynthConfig {
+    /// Defaults per mode: 320×320 stage-1 scenes, 1280×960 camera images at 98° (the paper's
+    /// benchmark camera), 128×128 stage-2 patches.
+    pub fn new(mode: Mode) -> Self {
+        let (width, height) = match mode {
+            Mode::Quad => (320, 320),
+            Mode::Camera => (1280, 960),
+            Mode::Patch => (128, 128),
+        };
+        Self {
+            mode,
+            width,
+            height,
+            markers: [1, 3],
+            fov_deg: 98.0,
+            side_m: [0.03, 0.1],
+            distance_m: [0.1, 1.0],
+            view_angle_deg: [0.0, 75.0],
+            augment: AugmentRanges::default(),
+        }
+    }
+}
+
+/// Ground truth of one keypoint.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct KeypointTruth {
+    pub x: f64,
+    pub y: f64,
+    pub category: usize,
+    /// The code symbol this keypoint carries, if it is a symbol keypoint.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub symbol: Option<u8>,
+    /// Inside the image.
+    pub visible: bool,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PoseTruth {
+    /// Row-major 3×3 rotation, marker frame (OpenCV ArUco's) → camera frame.
+    pub rotation: [[f64; 3]; 3],
+    pub translation_m: [f64; 3],
+    pub side_m: f64,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MarkerTruth {
+    pub id: usize,
+    /// Axis-aligned box of the marker's drawn area (quiet zone excluded): x0, y0, x1, y1.
+    pub bbox: [f64; 4],
+    /// The family's ROI points in the image, in order.
+    pub roi: Vec<[f64; 2]>,
+    pub keypoints: Vec<KeypointTruth>,
+    /// Outline of the marker's drawn area (the segmentation mask as a polygon).
+    pub mask: Vec<[f64; 2]>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pose: Option<PoseTruth>,
+}
+
+/// Augmentation values actually applied to an image.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct Applied {
+    pub blur_sigma: f32,
+    pub noise_sigma: f32,
+    pub motion_blur: Option<(u32, f32)>,
+    pub spotlight_gain: Option<f32>,
+    pub barrel_k1: Option<f64>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Truth {
+    pub family: String,
+    pub mode: Mode,
+    pub seed: u64,
+    pub width: u32,
+    pub height: u32,
+    pub markers: Vec<MarkerTruth>,
+    pub applied: Applied,
+    /// Camera mode: the intrinsics used (distortion = the barrel distortion applied).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub camera: Option<Camera>,
+}
+
+pub struct Sample {
+    pub image: GrayImage,
+    pub truth: Truth,
+}
+
+/// The seed of image `index` of a run seeded with `seed`.
+pub fn image_seed(seed: u64, index: u64) -> u64 {
+    seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(index)
+}
+
+/// A marker's placement: marker units → undistorted image pixels.
+struct Placement {
+    to_image: Homography,
+    pose: Option<(Pose, f64)>,
+}
+
+pub fn synthesize(family: &Family, config: &SynthConfig, seed: u64) -> Result<Sample, String> {
+    if config.width < 16 || config.height < 16 || config.width > 8192 || config.height > 8192 {
+        return Err(format!(
+            "image size {}×{} must be 16 to 8192 px",
+            config.width, config.height
+        ));
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let aug = &config.augment;
+    let mut canvas = background::procedural(&mut rng, config.width, config.height);
+    let camera = Camera::from_diagonal_fov(config.width, config.height, config.fov_deg)
+        .map_err(|e| e.to_string())?;
+
+    let count = match config.mode {
+        Mode::Patch => 1,
+        _ => rng.random_range(config.markers[0]..=config.markers[1].max(config.markers[0])),
+    };
+    let mut placed: Vec<(usize, Placement, [f64; 4])> = Vec::new();
+    for _ in 0..count {
+        for _attempt in 0..30 {
+            let placement = match config.mode {
+                Mode::Quad => place_quad(family, &mut rng, config),
+                Mode::Patch => place_patch(family, &mut rng, config),
+                Mode::Camera => place_camera(family, &mut rng, config, &camera),
+            }?;
+            let outline = project_outline(family, &placement.to_image);
+            let b = bbox(&outline);
+            let inside = b[0] >= 0.0
+                && b[1] >= 0.0
+                && b[2] < config.width as f64
+                && b[3] < config.height as f64;
+            let overlaps = placed
+                .iter()
+                .any(|(_, _, o)| b[0] < o[2] && o[0] < b[2] && b[1] < o[3] && o[1] < b[3]);
+            if (inside || config.mode == Mode::Camera) && !overlaps {
+                let id = rng.random_range(0..family.codebook().len());
+                placed.push((id, placement, b));
+                break;
+            }
+        }
+    }
+    for (id, placement, _) in &placed {
+        let black = draw(&mut rng, aug.marker_black) / 255.0;
+        let white = draw(&mut rng, aug.marker_white) / 255.0;
+        draw_marker(
+            &mut canvas,
+            family,
+            *id,
+            &placement.to_image,
+            black,
+            white.max(black),
+        )?;
+    }
+
+    let mut applied = Applied::default();
+    if rng.random_bool(aug.spotlight_probability) {
+        let gain = draw(&mut rng, aug.spotlight_gain);
+        augment::spotlight(&mut canvas, &mut rng, gain);
+        applied.spotlight_gain = Some(gain);
+    }
+    applied.blur_sigma = draw(&mut rng, aug.blur_sigma);
+    augment::gaussian_blur(&mut canvas, applied.blur_sigma);
+    if rng.random_bool(aug.motion_blur_probability) {
+        let length = rng.random_range(
+            aug.motion_blur_length[0]..=aug.motion_blur_length[1].max(aug.motion_blur_length[0]),
+        );
+        let angle = rng.random_range(0.0..std::f32::consts::PI);
+        augment::motion_blur(&mut canvas, length, angle);
+        applied.motion_blur = Some((length, angle));
+    }
+    // Barrel distortion moves pixels; the ground truth goes through the same model below.
+    let mut lens = camera;
+    if config.mode != Mode::Patch && rng.random_bool(aug.barrel_probability) {
+        let k1 = rng.random_range(aug.barrel_k1[0]..=aug.barrel_k1[1]);
+        lens.distortion[0] = k1;
+        canvas = distort_canvas(&canvas, &lens);
+        applied.barrel_k1 = Some(k1);
+    }
+    applied.noise_sigma = draw(&mut rng, aug.noise_sigma);
+    augment::noise(&mut canvas, &mut rng, applied.noise_sigma);
+
+    let to_pixel = |p: [f64; 2]| distort_point(&lens, p);
+    let markers = placed
+        .iter()
+        .map(|(id, placement, _)| marker_truth(family, *id, placement, &to_pixel, config))
+        .collect();
+    Ok(Sample {
+        image: canvas.to_gray(),
+        truth: Truth {
+            family: family.name().to_string(),
+            mode: config.mode,
+            seed,
+            width: config.width,
+            height: config.height,
+            markers,
+            applied,
+            camera: (config.mode == Mode::Camera).then_some(lens),
+        },
+    })
+}
+
+fn roi4(family: &Family) -> Vec<[f64; 2]> {
+    family.roi_points()[..4].to_vec()
+}
+
+fn place_quad(family: &Family, rng: &mut ChaCha8Rng, c: &SynthConfig) -> Result<Placement, String> {
+    let (w, h) = (c.width as f64, c.height as f64);
+    let side = rng.random_range(0.15..0.55) * w.min(h);
+    let (cx, cy) = (rng.random_range(0.0..w), rng.random_range(0.0..h));
+    let angle = rng.random_range(0.0..std::f64::consts::TAU);
+    let (s, co) = angle.sin_cos();
+    let quad: Vec<[f64; 2]> = [[-0.5, -0.5], [0.5, -0.5], [0.5, 0.5], [-0.5, 0.5]]
+        .iter()
+        .map(|p| {
+            let (jx, jy) = (rng.random_range(-0.15..0.15), rng.random_range(-0.15..0.15));
+            let (x, y) = ((p[0] + jx) * side, (p[1] + jy) * side);
+            [cx + co * x - s * y, cy + s * x + co * y]
+        })
+        .collect();
+    let to_image = Homography::from_points(&roi4(family), &quad).map_err(|e| e.to_string())?;
+    Ok(Placement {
+        to_image,
+        pose: None,
+    })
+}
+
+fn place_patch(
+    family: &Family,
+    rng: &mut ChaCha8Rng,
+    c: &SynthConfig,
+) -> Result<Placement, String> {
+    let mut a = [0.0; 8];
+    a.iter_mut().for_each(|v| *v = rng.random_range(0.05..0.25));
+    let (w, h) = (c.width as f64, c.height as f64);
+    let quad = [
+        [a[0] * w, a[1] * h],
+        [(1.0 - a[2]) * w, a[3] * h],
+        [(1.0 - a[4]) * w, (1.0 - a[5]) * h],
+        [a[6] * w, (1.0 - a[7]) * h],
+    ];
+    let to_image = Homography::from_points(&roi4(family), &quad).map_err(|e| e.to_string())?;
+    Ok(Placement {
+        to_image,
+        pose: None,
+    })
+}
+
+fn place_camera(
+    family: &Family,
+    rng: &mut ChaCha8Rng,
+    c: &SynthConfig,
+    camera: &Camera,
+) -> Result<Placement, String> {
+    let side = rng.random_range(c.side_m[0]..=c.side_m[1]);
+    let distance = rng.random_range(c.distance_m[0]..=c.distance_m[1]);
+    let view = rng
+        .random_range(c.view_angle_deg[0]..=c.view_angle_deg[1])
+        .to_radians();
+    let pose = random_pose(rng, camera, distance, view);
+    Ok(Placement {
+        to_image: camera_homography(family, camera, &pose, side),
+        pose: Some((pose, side)),
+    })
+}
+
+/// A marker at `distance` metres, turned `view` radians away from facing the camera, spun
+/// in-plane at random, somewhere in the field of view.
+pub fn random_pose(rng: &mut ChaCha8Rng, camera: &Camera, distance: f64, view: f64) -> Pose {
+    let facing = Rotation3::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI);
+    let tilt_axis = rng.random_range(0.0..std::f64::consts::TAU);
+    let tilt = Rotation3::new(Vector3::new(tilt_axis.cos(), tilt_axis.sin(), 0.0) * view);
+    let spin = Rotation3::from_axis_angle(
+        &Vector3::z_axis(),
+        rng.random_range(0.0..std::f64::consts::TAU),
+    );
+    // A direction within the central 60 % of the image.
+    let (u, v) = (
+        rng.random_range(0.2..0.8) * camera.width as f64,
+        rng.random_range(0.2..0.8) * camera.height as f64,
+    );
+    let ray = Vector3::new(
+        (u - camera.cx) / camera.fx,
+        (v - camera.cy) / camera.fy,
+        1.0,
+    )
+    .normalize();
+    Pose {
+        rotation: tilt * facing * spin,
+        translation: ray * distance,
+    }
+}
+
+/// Marker units → undistorted pixels for a marker `side_m` metres wide at `pose`: K · [r1 r2 t]
+/// composed with the marker-unit → metric plane map.
+pub fn camera_homography(family: &Family, camera: &Camera, pose: &Pose, side_m: f64) -> Homography {
+    let k = Matrix3::new(
+        camera.fx, 0.0, camera.cx, 0.0, camera.fy, camera.cy, 0.0, 0.0, 1.0,
+    );
+    let r = pose.rotation.matrix();
+    let plane = Matrix3::from_columns(&[
+        r.column(0).into_owned(),
+        r.column(1).into_owned(),
+        pose.translation,
+    ]);
+    // Marker units → plane metres, from three reference points of the affine map.
+    let refs = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
+    let m = marker_plane_points(family, side_m, &refs);
+    let a = Matrix3::new(
+        m[1][0] - m[0][0],
+        m[2][0] - m[0][0],
+        m[0][0],
+        m[1][1] - m[0][1],
+        m[2][1] - m[0][1],
+        m[0][1],
+        0.0,
+        0.0,
+        1.0,
+    );
+    Homography(k * plane * a)
+}
+
+/// The marker's drawn area (quiet zone excluded) as a polygon, 8 points per side so that it
+/// bends with lens distortion.
+fn outline_units(family: &Family) -> Vec<[f64; 2]> {
+    let e = family.extent();
+    let corners = [
+        [e.min[0], e.min[1]],
+        [e.max[0], e.min[1]],
+        [e.max[0], e.max[1]],
+        [e.min[0], e.max[1]],
+    ];
+    (0..4)
+        .flat_map(|i| {
+            let (a, b) = (corners[i], corners[(i + 1) % 4]);
+            (0..8).map(move |k| {
+                let t = k as f64 / 8.0;
+                [a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t]
+            })
+        })
+        .collect()
+}
+
+fn project_outline(family: &Family, h: &Homography) -> Vec<[f64; 2]> {
+    outline_units(family).iter().map(|&p| h.apply(p)).collect()
+}
+
+fn bbox(points: &[[f64; 2]]) -> [f64; 4] {
+    points
+        .iter()
+        .fold([f64::MAX, f64::MAX, f64::MIN, f64::MIN], |b, p| {
+            [
+                b[0].min(p[0]),
+                b[1].min(p[1]),
+                b[2].max(p[0]),
+                b[3].max(p[1]),
+            ]
+        })
+}
+
+/// Draws a marker (quiet zone included) through `to_image`, its black at `black` and white at
+/// `white`, from a raster at about the on-image resolution.
+fn draw_marker(
+    canvas: &mut Canvas,
+    family: &Family,
+    id: usize,
+    to_image: &Homography,
+    black: f32,
+    white: f32,
+) -> Result<(), String> {
+    let scene = marker_scene(
+        family,
+        id,
+        SceneOptions {
+            side_mm: Some(family.roi_side()),
+            quiet_zone: None,
+        },
+    )
+    .map_err(|e| e.to_string())?;
+    // scene mm == marker units here (scale 1); area with quiet zone in marker units:
+    let area = family.extent().grow(family.quiet_zone());
+    let corners = [
+        [area.min[0], area.min[1]],
+        [area.max[0], area.min[1]],
+        [area.max[0], area.max[1]],
+        [area.min[0], area.max[1]],
+    ];
+    let img: Vec<[f64; 2]> = corners.iter().map(|&p| to_image.apply(p)).collect();
+    let longest = (0..4)
+        .map(|i| (img[i][0] - img[(i + 1) % 4][0]).hypot(img[i][1] - img[(i + 1) % 4][1]))
+        .fold(0.0, f64::max);
+    let px_per_unit = (1.25 * longest / area.width().max(area.height()))
+        .clamp(2.0, 4096.0 / area.width().max(area.height()));
+    let pixmap = raster::rasterize(&scene, px_per_unit).map_err(|e| e.to_string())?;
+    let (pw, ph) = (pixmap.width() as usize, pixmap.height() as usize);
+    let (scale_x, scale_y) = (pw as f64 / area.width(), ph as f64 / area.height());
+    let gray: Vec<f32> = pixmap
+        .pixels()
+        .iter()
+        .map(|p| p.green() as f32 / 255.0)
+        .collect();
+    let from_image = to_image
+        .inverse()
+        .ok_or("the marker placement is degenerate")?;
+    let b = bbox(&img);
+    let (x0, y0) = (b[0].floor().max(0.0) as u32, b[1].floor().max(0.0) as u32);
+    let (x1, y1) = (
+        (b[2].ceil() as i64).min(canvas.width as i64 - 1),
+        (b[3].ceil() as i64).min(canvas.height as i64 - 1),
+    );
+    for y in y0 as i64..=y1 {
+        for x in x0 as i64..=x1 {
+            let p = from_image.apply([x as f64, y as f64]);
+            if p[0] < area.min[0] || p[1] < area.min[1] || p[0] > area.max[0] || p[1] > area.max[1]
+            {
+                continue;
+            }
+            // Raster pixel centres sit at +0.5; the raster's size was rounded to whole pixels, so
+            // its true scale is its size over the area's.
+            let rx = ((p[0] - area.min[0]) * scale_x - 0.5) as f32;
+            let ry = ((p[1] - area.min[1]) * scale_y - 0.5) as f32;
+            let (fx0, fy0) = (rx.floor(), ry.floor());
+            let (fx, fy) = (rx - fx0, ry - fy0);
+            let at = |xx: f32, yy: f32| {
+                gray[(yy.clamp(0.0, ph as f32 - 1.0) as usize) * pw
+                    + xx.clamp(0.0, pw as f32 - 1.0) as usize]
+            };
+            let v = (at(fx0, fy0) * (1.0 - fx) + at(fx0 + 1.0, fy0) * fx) * (1.0 - fy)
+                + (at(fx0, fy0 + 1.0) * (1.0 - fx) + at(fx0 + 1.0, fy0 + 1.0) * fx) * fy;
+            canvas.set(x as u32, y as u32, black + (white - black) * v);
+        }
+    }
+    Ok(())
+}
+
+/// Undistorted pixel → distorted pixel through the lens model.
+fn distort_point(lens: &Camera, p: [f64; 2]) -> [f64; 2] {
+    if lens.distortion == [0.0; 5] {
+        return p;
+    }
+    let d = lens.distort([(p[0] - lens.cx) / lens.fx, (p[1] - lens.cy) / lens.fy]);
+    [lens.fx * d[0] + lens.cx, lens.fy * d[1] + lens.cy]
+}
+
+/// Each output (distorted) pixel takes the undistorted image where the lens model says it comes
+/// from.
+fn distort_canvas(src: &Canvas, lens: &Camera) -> Canvas {
+    let mut out = Canvas::new(src.width, src.height, 0.0);
+    for y in 0..src.height {
+        for x in 0..src.width {
+            let n = lens.normalise([x as f64, y as f64]);
+            let (u, v) = (lens.fx * n[0] + lens.cx, lens.fy * n[1] + lens.cy);
+            out.set(x, y, src.sample(u as f32, v as f32));
+        }
+    }
+    out
+}
+
+fn marker_truth(
+    family: &Family,
+    id: usize,
+    placement: &Placement,
+    to_pixel: &dyn Fn([f64; 2]) -> [f64; 2],
+    c: &SynthConfig,
+) -> MarkerTruth {
+    let project = |p: [f64; 2]| to_pixel(placement.to_image.apply(p));
+    let categories = family
+        .keypoint_categories(id)
+        .expect("IDs are drawn from the codebook");
+    let keypoints = family
+        .keypoints()
+        .iter()
+        .zip(categories)
+        .map(|(k, category)| {
+            let [x, y] = project(k.pos);
+            KeypointTruth {
+                x,
+                y,
+                category,
+                symbol: family
+                    .category_symbol(category)
+                    .filter(|_| matches!(k.assignment, crate::family::Assignment::Symbol(_))),
+                visible: x >= 0.0
+                    && y >= 0.0
+                    && x <= c.width as f64 - 1.0
+                    && y <= c.height as f64 - 1.0,
+            }
+        })
+        .collect();
+    let mask: Vec<[f64; 2]> = outline_units(family).into_iter().map(project).collect();
+    MarkerTruth {
+        id,
+        bbox: bbox(&mask),
+        roi: family.roi_points().iter().map(|&p| project(p)).collect(),
+        keypoints,
+        mask,
+        pose: placement.pose.map(|(pose, side_m)| {
+            let r = pose.rotation.matrix();
+            PoseTruth {
+                rotation: [
+                    [r[(0, 0)], r[(0, 1)], r[(0, 2)]],
+                    [r[(1, 0)], r[(1, 1)], r[(1, 2)]],
+                    [r[(2, 0)], r[(2, 1)], r[(2, 2)]],
+                ],
+                translation_m: [
+                    pose.translation[0],
+                    pose.translation[1],
+                    pose.translation[2],
+                ],
+                side_m,
+            }
+        }),
+    }
+}
+
+#[cfg(test)]
+mod tests;
