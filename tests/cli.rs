@@ -312,3 +312,48 @@ fn no_subcommand_starts_the_studio_entry_point() {
     run.ok();
     assert!(run.stdout.contains("tagsmith families"), "{}", run.stdout);
 }
+
+#[test]
+fn synth_writes_images_ground_truth_and_a_contact_sheet_reproducibly() {
+    let dir = tempfile::tempdir().unwrap();
+    for out in ["a", "b"] {
+        tagsmith(
+            dir.path(),
+            &[
+                "synth",
+                "apriltag-16h5",
+                "-n",
+                "5",
+                "--mode",
+                "patch",
+                "--seed",
+                "9",
+                "-o",
+                out,
+            ],
+        )
+        .ok();
+    }
+    for i in 0..5 {
+        let name = format!("{i:06}");
+        let (a, b) = (dir.path().join("a"), dir.path().join("b"));
+        assert_eq!(
+            std::fs::read(a.join(format!("{name}.png"))).unwrap(),
+            std::fs::read(b.join(format!("{name}.png"))).unwrap()
+        );
+        let truth: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(a.join(format!("{name}.json"))).unwrap())
+                .unwrap();
+        assert_eq!(truth["family"], "apriltag-16h5");
+        assert_eq!(truth["width"], 128);
+        let kps = truth["markers"][0]["keypoints"].as_array().unwrap();
+        assert_eq!(kps.len(), 36);
+        assert!(kps.iter().all(|k| k["visible"] == true));
+    }
+    assert!(dir.path().join("a/contact.png").exists());
+    let run = tagsmith(
+        dir.path(),
+        &["synth", "apriltag-16h5", "-n", "0", "-o", "c"],
+    );
+    assert_eq!(run.code, 2);
+}
