@@ -49,6 +49,44 @@ pub enum Command {
     Schema,
     /// Synthesise training images with exact ground truth (PNG + JSON each, and a contact sheet).
     Synth(SynthArgs),
+    /// The evaluation harness: benchmark sets, scoring of detections.
+    #[command(subcommand)]
+    Eval(EvalCommand),
+}
+
+#[derive(Subcommand, Debug)]
+pub enum EvalCommand {
+    /// Render a benchmark set (the paper's protocol, jitter, noise and motion-blur sweeps) to DIR.
+    Generate {
+        /// Built-in family name or path to a family JSON file.
+        family: String,
+        /// Marker side in mm (corner to corner).
+        #[arg(long, default_value_t = 50.0)]
+        side_mm: f64,
+        /// Images per (distance, angle) cell of the protocol (10 × 10 cells).
+        #[arg(long, default_value_t = 1)]
+        per_cell: u32,
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        #[arg(short, long)]
+        output: PathBuf,
+    },
+    /// Score a detections JSON file against a benchmark set: report.json, report.md and plots.
+    Score {
+        /// Benchmark set folder (with set.json).
+        set: PathBuf,
+        /// Detections JSON (format: see `tagsmith_core::eval`, or bench/README.md).
+        detections: PathBuf,
+        /// Report folder [default: SET/report-DETECTOR].
+        #[arg(short, long)]
+        output: Option<PathBuf>,
+    },
+    /// Write the ground truth as a detections file: the format's reference and a perfect score.
+    Oracle {
+        set: PathBuf,
+        #[arg(short, long)]
+        output: PathBuf,
+    },
 }
 
 #[derive(Args, Debug)]
@@ -232,6 +270,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Validate { file } => validate(&file),
         Command::ExportOpencv { family, output } => export_opencv(&family, &output),
         Command::Synth(a) => synth(a),
+        Command::Eval(e) => eval(e),
         Command::Schema => {
             print_quietly(&family::schema_json());
             Ok(())
@@ -602,5 +641,109 @@ fn synth(a: SynthArgs) -> Result<()> {
         a.seed,
         a.output.display()
     );
+    Ok(())
+}
+
+fn eval(command: EvalCommand) -> Result<()> {
+    use tagsmith::eval::{score, set, Detection, DetectionsFile, ImageDetections, PoseJson};
+    match command {
+        EvalCommand::Generate {
+            family,
+            side_mm,
+            per_cell,
+            seed,
+            output,
+        } => {
+            let family = load_family(&family)?;
+            let params = set::SetParams {
+                side_m: side_mm / 1000.0,
+                per_cell,
+                seed,
+                ..set::SetParams::default()
+            };
+            let started = std::time::Instant::now();
+            let s = set::generate(&family, &params, &output).map_err(|e| bad(anyhow!(e)))?;
+            println!(
+                "wrote {} images of {} ({} mm) to {} in {:.1} s",
+                s.images.len(),
+                family.name(),
+                side_mm,
+                output.display(),
+                started.elapsed().as_secs_f64()
+            );
+        }
+        EvalCommand::Oracle { set: dir, output } => {
+            let s = set::load(&dir).map_err(|e| bad(anyhow!(e)))?;
+            let images = s
+                .images
+                .iter()
+                .map(|img| ImageDetections {
+                    file: img.file.clone(),
+                    time_ms: 0.0,
+                    detections: img
+                        .truth
+                        .markers
+                        .iter()
+                        .map(|m| Detection {
+                            id: m.id,
+                            corners: [m.roi[0], m.roi[1], m.roi[2], m.roi[3]],
+                            pose: m.pose.as_ref().map(|p| PoseJson {
+                                rotation: p.rotation,
+                                translation_m: p.translation_m,
+                            }),
+                        })
+                        .collect(),
+                })
+                .collect();
+            let file = DetectionsFile {
+                detector: "ground truth".into(),
+                images,
+            };
+            write_output(
+                &output,
+                serde_json::to_string_pretty(&file)
+                    .expect("serialises")
+                    .as_bytes(),
+            )?;
+            println!("wrote {}", output.display());
+        }
+        EvalCommand::Score {
+            set: dir,
+            detections,
+            output,
+        } => {
+            let s = set::load(&dir).map_err(|e| bad(anyhow!(e)))?;
+            let text = std::fs::read_to_string(&detections)
+                .with_context(|| format!("cannot read {}", detections.display()))
+                .map_err(bad)?;
+            let file: DetectionsFile = serde_json::from_str(&text)
+                .map_err(|e| bad(anyhow!("{}: {e}", detections.display())))?;
+            let family = load_family(&s.family).ok();
+            let report = score::score(&s, family.as_ref(), &file)
+                .map_err(|e| bad(anyhow!("{}: {e}", detections.display())))?;
+            let slug: String = file
+                .detector
+                .chars()
+                .map(|c| if c.is_ascii_alphanumeric() { c } else { '-' })
+                .collect();
+            let out = output.unwrap_or_else(|| dir.join(format!("report-{slug}")));
+            std::fs::create_dir_all(&out)
+                .with_context(|| format!("cannot create {}", out.display()))
+                .map_err(failed)?;
+            write_output(
+                &out.join("report.json"),
+                serde_json::to_string_pretty(&report)
+                    .expect("serialises")
+                    .as_bytes(),
+            )?;
+            let md = report.markdown();
+            write_output(&out.join("report.md"), md.as_bytes())?;
+            for (name, svg) in report.plots() {
+                write_output(&out.join(name), svg.as_bytes())?;
+            }
+            print_quietly(&md);
+            println!("\nwrote {}", out.display());
+        }
+    }
     Ok(())
 }

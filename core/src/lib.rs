@@ -8,6 +8,7 @@
 pub mod builtin;
 pub mod codebook;
 pub mod color;
+pub mod eval;
 pub mod family;
 pub mod geometry;
 pub mod io;

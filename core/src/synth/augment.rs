@@ -24,10 +24,17 @@ pub struct AugmentRanges {
     /// Probability and kernel length (pixels) of a linear motion blur.
     pub motion_blur_probability: f64,
     pub motion_blur_length: [u32; 2],
+    /// Direction range of the motion blur, degrees.
+    #[serde(default = "half_turn")]
+    pub motion_blur_angle_deg: [f32; 2],
     /// Probability and k1 range of barrel distortion (k1 < 0), applied to the whole image and to
     /// the ground truth with the same model.
     pub barrel_probability: f64,
     pub barrel_k1: [f64; 2],
+}
+
+fn half_turn() -> [f32; 2] {
+    [0.0, 180.0]
 }
 
 impl Default for AugmentRanges {
@@ -41,6 +48,7 @@ impl Default for AugmentRanges {
             noise_sigma: [0.0, 12.0],
             motion_blur_probability: 0.2,
             motion_blur_length: [3, 11],
+            motion_blur_angle_deg: half_turn(),
             barrel_probability: 0.25,
             // Past r = 1/sqrt(3|k1|) the model folds back; at -0.18 that stays outside a 98° frame.
             barrel_k1: [-0.18, -0.02],
@@ -60,6 +68,7 @@ impl AugmentRanges {
             noise_sigma: [0.0, 0.0],
             motion_blur_probability: 0.0,
             motion_blur_length: [1, 1],
+            motion_blur_angle_deg: half_turn(),
             barrel_probability: 0.0,
             barrel_k1: [0.0, 0.0],
         }

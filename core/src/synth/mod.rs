@@ -88,6 +88,10 @@ pub struct SynthConfig {
     pub distance_m: [f64; 2],
     pub view_angle_deg: [f64; 2],
     pub augment: AugmentRanges,
+    /// Seeds the sensor noise separately: the same image seed with another noise seed renders the
+    /// same scene with fresh noise (jitter sets).
+    #[serde(default)]
+    pub noise_seed: Option<u64>,
 }
 
 impl SynthConfig {
@@ -109,6 +113,7 @@ impl SynthConfig {
             distance_m: [0.1, 1.0],
             view_angle_deg: [0.0, 75.0],
             augment: AugmentRanges::default(),
+            noise_seed: None,
         }
     }
 }
@@ -254,7 +259,7 @@ pub fn synthesize(family: &Family, config: &SynthConfig, seed: u64) -> Result<Sa
         let length = rng.random_range(
             aug.motion_blur_length[0]..=aug.motion_blur_length[1].max(aug.motion_blur_length[0]),
         );
-        let angle = rng.random_range(0.0..std::f32::consts::PI);
+        let angle = draw(&mut rng, aug.motion_blur_angle_deg).to_radians();
         augment::motion_blur(&mut canvas, length, angle);
         applied.motion_blur = Some((length, angle));
     }
@@ -267,7 +272,12 @@ pub fn synthesize(family: &Family, config: &SynthConfig, seed: u64) -> Result<Sa
         applied.barrel_k1 = Some(k1);
     }
     applied.noise_sigma = draw(&mut rng, aug.noise_sigma);
-    augment::noise(&mut canvas, &mut rng, applied.noise_sigma);
+    let mut noise_rng = config.noise_seed.map(ChaCha8Rng::seed_from_u64);
+    augment::noise(
+        &mut canvas,
+        noise_rng.as_mut().unwrap_or(&mut rng),
+        applied.noise_sigma,
+    );
 
     let to_pixel = |p: [f64; 2]| distort_point(&lens, p);
     let markers = placed

@@ -1,0 +1,474 @@
+//! Scoring detections against a benchmark set: a detection is correct when its box overlaps the
+//! true marker's ROI box with IoU ≥ 0.5 and its ID is right; everything else is a false positive.
+//! Poses are compared in OpenCV ArUco's marker frame; a detection without a pose gets one from its
+//! four corners through the set's camera (the same PnP for every detector).
+
+use super::set::{BenchmarkSet, Group};
+use super::{Detection, DetectionsFile, PoseJson};
+use crate::family::Family;
+use crate::pose::{marker_plane_points, solve_planar, Pose};
+use crate::synth::MarkerTruth;
+use nalgebra::{Matrix3, Rotation3, Vector3};
+use serde::{Deserialize, Serialize};
+use std::collections::HashMap;
+
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Stats {
+    pub mean: f64,
+    pub median: f64,
+}
+
+fn stats(mut v: Vec<f64>) -> Option<Stats> {
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_by(f64::total_cmp);
+    let median = if v.len() % 2 == 1 {
+        v[v.len() / 2]
+    } else {
+        (v[v.len() / 2 - 1] + v[v.len() / 2]) / 2.0
+    };
+    Some(Stats {
+        mean: v.iter().sum::<f64>() / v.len() as f64,
+        median,
+    })
+}
+
+/// Scores of one subset of images.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Row {
+    pub subset: String,
+    pub images: usize,
+    pub markers: usize,
+    pub detections: usize,
+    pub correct: usize,
+    pub recall: f64,
+    pub precision: f64,
+    pub position_error_mm: Option<Stats>,
+    pub rotation_error_deg: Option<Stats>,
+    pub time_ms: f64,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CurvePoint {
+    pub x: f64,
+    pub recall: f64,
+    pub position_error_mm: Option<f64>,
+    pub rotation_error_deg: Option<f64>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Curve {
+    pub name: String,
+    pub x_label: String,
+    pub points: Vec<CurvePoint>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Jitter {
+    /// Poses with at least two detections.
+    pub poses: usize,
+    /// Mean over poses of the standard deviation of the position (mm) and rotation (deg).
+    pub position_std_mm: f64,
+    pub rotation_std_deg: f64,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Report {
+    pub detector: String,
+    pub family: String,
+    pub rows: Vec<Row>,
+    pub curves: Vec<Curve>,
+    pub jitter: Option<Jitter>,
+}
+
+/// One image's outcome.
+struct Outcome {
+    markers: usize,
+    detections: usize,
+    /// (position error m, rotation error deg, detected pose) per correct detection.
+    correct: Vec<(f64, f64, Option<Pose>)>,
+    time_ms: f64,
+}
+
+fn pose_from_json(p: &PoseJson) -> Pose {
+    Pose {
+        rotation: Rotation3::from_matrix_unchecked(Matrix3::from_fn(|i, j| p.rotation[i][j])),
+        translation: Vector3::from(p.translation_m),
+    }
+}
+
+fn iou(a: [f64; 4], b: [f64; 4]) -> f64 {
+    let w = (a[2].min(b[2]) - a[0].max(b[0])).max(0.0);
+    let h = (a[3].min(b[3]) - a[1].max(b[1])).max(0.0);
+    let inter = w * h;
+    let area = |r: [f64; 4]| (r[2] - r[0]) * (r[3] - r[1]);
+    let union = area(a) + area(b) - inter;
+    if union > 0.0 {
+        inter / union
+    } else {
+        0.0
+    }
+}
+
+fn bbox(points: &[[f64; 2]]) -> [f64; 4] {
+    points
+        .iter()
+        .fold([f64::MAX, f64::MAX, f64::MIN, f64::MIN], |b, p| {
+            [
+                b[0].min(p[0]),
+                b[1].min(p[1]),
+                b[2].max(p[0]),
+                b[3].max(p[1]),
+            ]
+        })
+}
+
+fn judge(
+    set: &BenchmarkSet,
+    family: Option<&Family>,
+    truth: &[MarkerTruth],
+    detections: &[Detection],
+    time_ms: f64,
+) -> Outcome {
+    let mut used = vec![false; truth.len()];
+    let mut correct = Vec::new();
+    for d in detections {
+        if !d.corners.iter().flatten().all(|v| v.is_finite()) {
+            continue;
+        }
+        let boxed = bbox(&d.corners);
+        let hit = truth
+            .iter()
+            .enumerate()
+            .find(|(i, t)| !used[*i] && t.id == d.id && iou(boxed, bbox(&t.roi[..4])) >= 0.5);
+        let Some((i, t)) = hit else { continue };
+        used[i] = true;
+        let detected = d.pose.as_ref().map(pose_from_json).or_else(|| {
+            let f = family?;
+            let object = marker_plane_points(f, set.side_m, &f.roi_points()[..4]);
+            solve_planar(&set.camera, &object, &d.corners)
+                .ok()
+                .map(|s| s.pose)
+        });
+        let errors = match (detected, &t.pose) {
+            (Some(p), Some(tp)) => {
+                let truth_pose = pose_from_json(&PoseJson {
+                    rotation: tp.rotation,
+                    translation_m: tp.translation_m,
+                });
+                (
+                    p.position_error(&truth_pose),
+                    p.rotation_error_deg(&truth_pose),
+                )
+            }
+            _ => (f64::NAN, f64::NAN),
+        };
+        correct.push((errors.0, errors.1, detected));
+    }
+    Outcome {
+        markers: truth.len(),
+        detections: detections.len(),
+        correct,
+        time_ms,
+    }
+}
+
+fn row(subset: &str, outcomes: &[&Outcome]) -> Row {
+    let markers: usize = outcomes.iter().map(|o| o.markers).sum();
+    let detections: usize = outcomes.iter().map(|o| o.detections).sum();
+    let correct: usize = outcomes.iter().map(|o| o.correct.len()).sum();
+    let finite = |f: fn(&(f64, f64, Option<Pose>)) -> f64| -> Vec<f64> {
+        outcomes
+            .iter()
+            .flat_map(|o| o.correct.iter().map(f))
+            .filter(|v| v.is_finite())
+            .collect()
+    };
+    Row {
+        subset: subset.to_string(),
+        images: outcomes.len(),
+        markers,
+        detections,
+        correct,
+        recall: if markers > 0 {
+            correct as f64 / markers as f64
+        } else {
+            0.0
+        },
+        precision: if detections > 0 {
+            correct as f64 / detections as f64
+        } else {
+            1.0
+        },
+        position_error_mm: stats(finite(|c| c.0 * 1000.0)),
+        rotation_error_deg: stats(finite(|c| c.1)),
+        time_ms: outcomes.iter().map(|o| o.time_ms).sum::<f64>() / outcomes.len().max(1) as f64,
+    }
+}
+
+fn curve(name: &str, x_label: &str, groups: Vec<(f64, Vec<&Outcome>)>) -> Curve {
+    Curve {
+        name: name.into(),
+        x_label: x_label.into(),
+        points: groups
+            .into_iter()
+            .map(|(x, o)| {
+                let r = row("", &o);
+                CurvePoint {
+                    x,
+                    recall: r.recall,
+                    position_error_mm: r.position_error_mm.map(|s| s.mean),
+                    rotation_error_deg: r.rotation_error_deg.map(|s| s.mean),
+                }
+            })
+            .collect(),
+    }
+}
+
+/// Groups outcomes by a key, in ascending key order.
+fn by<K: Copy + PartialOrd + Into<f64>>(
+    items: &[(Group, Outcome)],
+    key: impl Fn(&Group) -> Option<K>,
+) -> Vec<(f64, Vec<&Outcome>)> {
+    let mut out: Vec<(f64, Vec<&Outcome>)> = Vec::new();
+    for (g, o) in items {
+        if let Some(k) = key(g) {
+            let k: f64 = k.into();
+            match out.iter_mut().find(|(x, _)| *x == k) {
+                Some((_, v)) => v.push(o),
+                None => out.push((k, vec![o])),
+            }
+        }
+    }
+    out.sort_by(|a, b| a.0.total_cmp(&b.0));
+    out
+}
+
+pub fn score(
+    set: &BenchmarkSet,
+    family: Option<&Family>,
+    detections: &DetectionsFile,
+) -> Result<Report, String> {
+    let by_file: HashMap<&str, &super::ImageDetections> = detections
+        .images
+        .iter()
+        .map(|i| (i.file.as_str(), i))
+        .collect();
+    if let Some(unknown) = detections
+        .images
+        .iter()
+        .find(|i| !set.images.iter().any(|s| s.file == i.file))
+    {
+        return Err(format!(
+            "detections for {:?}, which is not an image of this set",
+            unknown.file
+        ));
+    }
+    let items: Vec<(Group, Outcome)> = set
+        .images
+        .iter()
+        .map(|img| {
+            let found = by_file.get(img.file.as_str());
+            let dets = found.map_or(&[][..], |f| &f.detections[..]);
+            (
+                img.group,
+                judge(
+                    set,
+                    family,
+                    &img.truth.markers,
+                    dets,
+                    found.map_or(0.0, |f| f.time_ms),
+                ),
+            )
+        })
+        .collect();
+    let select = |f: &dyn Fn(&Group) -> bool| -> Vec<&Outcome> {
+        items.iter().filter(|(g, _)| f(g)).map(|(_, o)| o).collect()
+    };
+    let rows = vec![
+        row(
+            "normal (≤ 50 cm, ≤ 60°)",
+            &select(&|g| matches!(g, Group::Protocol { normal: true, .. })),
+        ),
+        row(
+            "difficult",
+            &select(&|g| matches!(g, Group::Protocol { normal: false, .. })),
+        ),
+        row(
+            "protocol, all",
+            &select(&|g| matches!(g, Group::Protocol { .. })),
+        ),
+        row("jitter", &select(&|g| matches!(g, Group::Jitter { .. }))),
+        row(
+            "noise sweep",
+            &select(&|g| matches!(g, Group::Noise { .. })),
+        ),
+        row(
+            "motion-blur sweep",
+            &select(&|g| matches!(g, Group::MotionBlur { .. })),
+        ),
+    ];
+    let curves = vec![
+        curve(
+            "recall and error vs distance",
+            "distance (cm)",
+            by(&items, |g| match g {
+                Group::Protocol { distance_cm, .. } => Some(*distance_cm),
+                _ => None,
+            }),
+        ),
+        curve(
+            "recall and error vs view angle",
+            "view angle (deg)",
+            by(&items, |g| match g {
+                Group::Protocol { angle_deg, .. } => Some(*angle_deg),
+                _ => None,
+            }),
+        ),
+        curve(
+            "recall vs Gaussian noise",
+            "noise sigma (gray levels)",
+            by(&items, |g| match g {
+                Group::Noise { sigma } => Some(*sigma),
+                _ => None,
+            }),
+        ),
+        curve(
+            "recall vs motion blur",
+            "kernel length (px)",
+            by(&items, |g| match g {
+                Group::MotionBlur { length, .. } => Some(*length),
+                _ => None,
+            }),
+        ),
+    ];
+    Ok(Report {
+        detector: detections.detector.clone(),
+        family: set.family.clone(),
+        rows,
+        curves,
+        jitter: jitter(&items),
+    })
+}
+
+fn jitter(items: &[(Group, Outcome)]) -> Option<Jitter> {
+    let mut groups: HashMap<u32, Vec<Pose>> = HashMap::new();
+    for (g, o) in items {
+        if let Group::Jitter { pose } = g {
+            groups
+                .entry(*pose)
+                .or_default()
+                .extend(o.correct.iter().filter_map(|c| c.2));
+        }
+    }
+    let (mut pos, mut rot, mut n) = (0.0, 0.0, 0);
+    for poses in groups.values().filter(|p| p.len() >= 2) {
+        let k = poses.len() as f64;
+        let mean_t = poses.iter().map(|p| p.translation).sum::<Vector3<f64>>() / k;
+        // The rotation nearest to the mean matrix (chordal mean).
+        let sum: Matrix3<f64> = poses.iter().map(|p| *p.rotation.matrix()).sum();
+        let svd = sum.svd(true, true);
+        let mut r = svd.u? * svd.v_t?;
+        if r.determinant() < 0.0 {
+            r = -r;
+        }
+        let mean_r = Pose {
+            rotation: Rotation3::from_matrix_unchecked(r),
+            translation: mean_t,
+        };
+        pos += (poses
+            .iter()
+            .map(|p| (p.translation - mean_t).norm_squared())
+            .sum::<f64>()
+            / k)
+            .sqrt()
+            * 1000.0;
+        rot += (poses
+            .iter()
+            .map(|p| p.rotation_error_deg(&mean_r).powi(2))
+            .sum::<f64>()
+            / k)
+            .sqrt();
+        n += 1;
+    }
+    (n > 0).then(|| Jitter {
+        poses: n,
+        position_std_mm: pos / n as f64,
+        rotation_std_deg: rot / n as f64,
+    })
+}
+
+impl Report {
+    pub fn markdown(&self) -> String {
+        let mut s = format!("# {} on {}\n\n", self.detector, self.family);
+        s += "| subset | images | markers | recall | precision | position error mm (mean / median) | rotation error ° (mean / median) | time/image ms |\n";
+        s += "|---|---|---|---|---|---|---|---|\n";
+        let fmt = |st: &Option<Stats>| {
+            st.map_or("–".to_string(), |st| {
+                format!("{:.3} / {:.3}", st.mean, st.median)
+            })
+        };
+        for r in &self.rows {
+            if r.images == 0 {
+                continue;
+            }
+            s += &format!(
+                "| {} | {} | {} | {:.1} % | {:.1} % | {} | {} | {:.1} |\n",
+                r.subset,
+                r.images,
+                r.markers,
+                100.0 * r.recall,
+                100.0 * r.precision,
+                fmt(&r.position_error_mm),
+                fmt(&r.rotation_error_deg),
+                r.time_ms
+            );
+        }
+        if let Some(j) = &self.jitter {
+            s += &format!(
+                "\nJitter over {} poses: position STD {:.4} mm, rotation STD {:.4}°.\n",
+                j.poses, j.position_std_mm, j.rotation_std_deg
+            );
+        }
+        for c in &self.curves {
+            if c.points.is_empty() {
+                continue;
+            }
+            s += &format!("\n**{}** — {}: ", c.name, c.x_label);
+            let parts: Vec<String> = c
+                .points
+                .iter()
+                .map(|p| format!("{}: {:.0} %", p.x, 100.0 * p.recall))
+                .collect();
+            s += &parts.join(", ");
+            s += "\n";
+        }
+        s
+    }
+
+    /// One SVG line chart per curve (recall, 0–100 %).
+    pub fn plots(&self) -> Vec<(String, String)> {
+        self.curves
+            .iter()
+            .filter(|c| !c.points.is_empty())
+            .map(|c| {
+                let name = c
+                    .name
+                    .split_whitespace()
+                    .collect::<Vec<_>>()
+                    .join("-")
+                    .replace(['(', ')'], "");
+                let points: Vec<(f64, f64)> =
+                    c.points.iter().map(|p| (p.x, 100.0 * p.recall)).collect();
+                (
+                    format!("{name}.svg"),
+                    super::plot::line_chart(&c.name, &c.x_label, "recall (%)", &points, 100.0),
+                )
+            })
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,263 @@
+//! Benchmark sets: the paper's protocol (1280×960, 98° diagonal FOV, distances 10–100 cm in 10 cm
+//! steps, view angles 0–60° by 10 then 65, 70, 75°, in-plane rotation random; Normal = ≤ 50 cm and
+//! ≤ 60°, Difficult = the rest), jitter sets (one pose rendered K times with fresh noise), a
+//! Gaussian noise sweep (σ 0…300) and a motion-blur sweep (kernel 0…15, 10 directions). Written to
+//! disk once, seeded, so every detector sees the same images.
+
+use super::{DetectionsFile, Detector, ImageDetections};
+use crate::family::Family;
+use crate::geometry::{Camera, GrayImage};
+use crate::synth::augment::AugmentRanges;
+use crate::synth::{contact::encode_gray_png, image_seed, synthesize, Mode, SynthConfig, Truth};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+use std::time::Instant;
+
+pub const DISTANCES_CM: [u32; 10] = [10, 20, 30, 40, 50, 60, 70, 80, 90, 100];
+pub const ANGLES_DEG: [u32; 10] = [0, 10, 20, 30, 40, 50, 60, 65, 70, 75];
+pub const NOISE_SIGMAS: [u32; 13] = [0, 25, 50, 75, 100, 125, 150, 175, 200, 225, 250, 275, 300];
+pub const BLUR_LENGTHS: [u32; 9] = [0, 1, 3, 5, 7, 9, 11, 13, 15];
+
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum Group {
+    Protocol {
+        distance_cm: u32,
+        angle_deg: u32,
+        normal: bool,
+    },
+    Jitter {
+        pose: u32,
+    },
+    Noise {
+        sigma: u32,
+    },
+    MotionBlur {
+        length: u32,
+        direction_deg: u32,
+    },
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BenchImage {
+    pub file: String,
+    pub group: Group,
+    pub truth: Truth,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BenchmarkSet {
+    pub family: String,
+    pub side_m: f64,
+    pub camera: Camera,
+    pub seed: u64,
+    pub images: Vec<BenchImage>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct SetParams {
+    pub side_m: f64,
+    /// Images per (distance, angle) cell of the protocol.
+    pub per_cell: u32,
+    pub jitter_poses: u32,
+    pub jitter_renders: u32,
+    pub per_noise_level: u32,
+    /// Directions per motion-blur length (evenly spread over 180°).
+    pub blur_directions: u32,
+    pub seed: u64,
+}
+
+impl Default for SetParams {
+    fn default() -> Self {
+        Self {
+            side_m: 0.05,
+            per_cell: 1,
+            jitter_poses: 5,
+            jitter_renders: 10,
+            per_noise_level: 5,
+            blur_directions: 10,
+            seed: 0,
+        }
+    }
+}
+
+/// Clean renderings with a small sensor noise, mid-gray levels as a printed marker shows them.
+fn protocol_augment() -> AugmentRanges {
+    let mut a = AugmentRanges::none();
+    a.marker_black = [20.0, 40.0];
+    a.marker_white = [200.0, 235.0];
+    a.noise_sigma = [2.0, 2.0];
+    a
+}
+
+fn config(side: f64, distance_m: f64, angle_deg: f64, augment: AugmentRanges) -> SynthConfig {
+    let mut c = SynthConfig::new(Mode::Camera);
+    c.markers = [1, 1];
+    c.side_m = [side, side];
+    c.distance_m = [distance_m, distance_m];
+    c.view_angle_deg = [angle_deg, angle_deg];
+    c.augment = augment;
+    c
+}
+
+/// The list of (group, synth config, seed) of a set, in a fixed order.
+fn plan(p: &SetParams) -> Vec<(Group, SynthConfig, u64)> {
+    let mut out = Vec::new();
+    let mut n = 0u64;
+    let mut push = |g: Group, c: SynthConfig, seed: u64| out.push((g, c, seed));
+    for &d in &DISTANCES_CM {
+        for &a in &ANGLES_DEG {
+            for _ in 0..p.per_cell {
+                let g = Group::Protocol {
+                    distance_cm: d,
+                    angle_deg: a,
+                    normal: d <= 50 && a <= 60,
+                };
+                push(
+                    g,
+                    config(p.side_m, d as f64 / 100.0, a as f64, protocol_augment()),
+                    image_seed(p.seed, n),
+                );
+                n += 1;
+            }
+        }
+    }
+    for pose in 0..p.jitter_poses {
+        // One scene seed per pose; each render only reseeds the sensor noise.
+        let scene = image_seed(p.seed ^ 0x4A17, pose as u64);
+        for r in 0..p.jitter_renders {
+            let mut a = protocol_augment();
+            a.noise_sigma = [3.0, 3.0];
+            let mut c = config(p.side_m, 0.3, 30.0, a);
+            c.noise_seed = Some(image_seed(scene, r as u64 + 1));
+            push(Group::Jitter { pose }, c, scene);
+        }
+    }
+    for &sigma in &NOISE_SIGMAS {
+        for _ in 0..p.per_noise_level {
+            let mut a = protocol_augment();
+            a.noise_sigma = [sigma as f32, sigma as f32];
+            push(
+                Group::Noise { sigma },
+                config(p.side_m, 0.3, 20.0, a),
+                image_seed(p.seed ^ 0x9015E, n),
+            );
+            n += 1;
+        }
+    }
+    for &length in &BLUR_LENGTHS {
+        for dir in 0..p.blur_directions {
+            let mut a = protocol_augment();
+            let direction = dir * 180 / p.blur_directions;
+            a.motion_blur_probability = 1.0;
+            a.motion_blur_length = [length.max(1), length.max(1)];
+            a.motion_blur_angle_deg = [direction as f32, direction as f32];
+            let g = Group::MotionBlur {
+                length,
+                direction_deg: direction,
+            };
+            push(
+                g,
+                config(p.side_m, 0.3, 20.0, a),
+                image_seed(p.seed ^ 0xB1A4, n),
+            );
+            n += 1;
+        }
+    }
+    out
+}
+
+/// Renders the set into `dir/images/` and writes `dir/set.json` (the manifest with the truth).
+pub fn generate(family: &Family, params: &SetParams, dir: &Path) -> Result<BenchmarkSet, String> {
+    if !(params.side_m.is_finite() && params.side_m > 0.0 && params.side_m <= 1.0) {
+        return Err(format!("marker side {} m must be in (0, 1]", params.side_m));
+    }
+    std::fs::create_dir_all(dir.join("images")).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let plan = plan(params);
+    let images = plan
+        .par_iter()
+        .enumerate()
+        .map(|(i, (group, config, seed))| {
+            let sample = synthesize(family, config, *seed)?;
+            let file = format!("images/{i:06}.png");
+            let png = encode_gray_png(&sample.image)?;
+            crate::io::write_atomic(&dir.join(&file), &png).map_err(|e| format!("{file}: {e}"))?;
+            Ok(BenchImage {
+                file,
+                group: *group,
+                truth: sample.truth,
+            })
+        })
+        .collect::<Result<Vec<_>, String>>()?;
+    let camera = Camera::from_diagonal_fov(1280, 960, 98.0).map_err(|e| e.to_string())?;
+    let set = BenchmarkSet {
+        family: family.name().to_string(),
+        side_m: params.side_m,
+        camera,
+        seed: params.seed,
+        images,
+    };
+    let json = serde_json::to_string(&set).map_err(|e| e.to_string())?;
+    crate::io::write_atomic(&dir.join("set.json"), json.as_bytes())
+        .map_err(|e| format!("set.json: {e}"))?;
+    Ok(set)
+}
+
+pub fn load(dir: &Path) -> Result<BenchmarkSet, String> {
+    let path = dir.join("set.json");
+    let text = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+    serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+pub fn read_gray_png(path: &Path) -> Result<GrayImage, String> {
+    let file = std::fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut decoder = png::Decoder::new(std::io::BufReader::new(file));
+    decoder.set_transformations(png::Transformations::EXPAND | png::Transformations::STRIP_16);
+    let mut reader = decoder
+        .read_info()
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut buf = vec![0; reader.output_buffer_size()];
+    let info = reader
+        .next_frame(&mut buf)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    let channels = info.color_type.samples();
+    let pixels = buf[..info.buffer_size()]
+        .chunks(channels)
+        .map(|p| {
+            if channels >= 3 {
+                ((p[0] as u32 * 299 + p[1] as u32 * 587 + p[2] as u32 * 114) / 1000) as u8
+            } else {
+                p[0]
+            }
+        })
+        .collect();
+    Ok(GrayImage {
+        width: info.width,
+        height: info.height,
+        pixels,
+    })
+}
+
+/// Runs an in-process detector over the set, timing each image.
+pub fn run_detector(
+    dir: &Path,
+    set: &BenchmarkSet,
+    detector: &mut dyn Detector,
+) -> Result<DetectionsFile, String> {
+    let mut images = Vec::with_capacity(set.images.len());
+    for img in &set.images {
+        let gray = read_gray_png(&dir.join(&img.file))?;
+        let start = Instant::now();
+        let detections = detector.detect(&gray);
+        images.push(ImageDetections {
+            file: img.file.clone(),
+            time_ms: start.elapsed().as_secs_f64() * 1e3,
+            detections,
+        });
+    }
+    Ok(DetectionsFile {
+        detector: detector.name(),
+        images,
+    })
+}
