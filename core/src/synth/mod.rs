@@ -212,7 +212,7 @@ pub fn synthesize(family: &Family, config: &SynthConfig, seed: u64) -> Result<Sa
     };
     let mut placed: Vec<(usize, Placement, [f64; 4])> = Vec::new();
     for _ in 0..count {
-        for _attempt in 0..30 {
+        for attempt in 0..30 {
             let placement = match config.mode {
                 Mode::Quad => place_quad(family, &mut rng, config),
                 Mode::Patch => place_patch(family, &mut rng, config),
@@ -227,7 +227,10 @@ pub fn synthesize(family: &Family, config: &SynthConfig, seed: u64) -> Result<Sa
             let overlaps = placed
                 .iter()
                 .any(|(_, _, o)| b[0] < o[2] && o[0] < b[2] && b[1] < o[3] && o[1] < b[3]);
-            if (inside || config.mode == Mode::Camera) && !overlaps {
+            // Markers stay whole inside the image; a camera placement that never fits (a marker
+            // larger than the view) is kept partly outside on the last try rather than dropped.
+            let last_try = attempt == 29 && config.mode == Mode::Camera;
+            if (inside || last_try) && !overlaps {
                 let id = rng.random_range(0..family.codebook().len());
                 placed.push((id, placement, b));
                 break;
