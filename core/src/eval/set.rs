@@ -211,32 +211,8 @@ pub fn load(dir: &Path) -> Result<BenchmarkSet, String> {
 }
 
 pub fn read_gray_png(path: &Path) -> Result<GrayImage, String> {
-    let file = std::fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let mut decoder = png::Decoder::new(std::io::BufReader::new(file));
-    decoder.set_transformations(png::Transformations::EXPAND | png::Transformations::STRIP_16);
-    let mut reader = decoder
-        .read_info()
-        .map_err(|e| format!("{}: {e}", path.display()))?;
-    let mut buf = vec![0; reader.output_buffer_size()];
-    let info = reader
-        .next_frame(&mut buf)
-        .map_err(|e| format!("{}: {e}", path.display()))?;
-    let channels = info.color_type.samples();
-    let pixels = buf[..info.buffer_size()]
-        .chunks(channels)
-        .map(|p| {
-            if channels >= 3 {
-                ((p[0] as u32 * 299 + p[1] as u32 * 587 + p[2] as u32 * 114) / 1000) as u8
-            } else {
-                p[0]
-            }
-        })
-        .collect();
-    Ok(GrayImage {
-        width: info.width,
-        height: info.height,
-        pixels,
-    })
+    let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    crate::synth::decode_gray_png(&bytes).map_err(|e| format!("{}: {e}", path.display()))
 }
 
 /// Runs an in-process detector over the set, timing each image.

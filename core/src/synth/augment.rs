@@ -24,6 +24,9 @@ pub struct AugmentRanges {
     /// Probability and kernel length (pixels) of a linear motion blur.
     pub motion_blur_probability: f64,
     pub motion_blur_length: [u32; 2],
+    /// Probability that a single marker moves: a motion blur over its own region only.
+    #[serde(default)]
+    pub marker_motion_blur_probability: f64,
     /// Direction range of the motion blur, degrees.
     #[serde(default = "half_turn")]
     pub motion_blur_angle_deg: [f32; 2],
@@ -48,6 +51,7 @@ impl Default for AugmentRanges {
             noise_sigma: [0.0, 12.0],
             motion_blur_probability: 0.2,
             motion_blur_length: [3, 11],
+            marker_motion_blur_probability: 0.15,
             motion_blur_angle_deg: half_turn(),
             barrel_probability: 0.25,
             // Past r = 1/sqrt(3|k1|) the model folds back; at -0.18 that stays outside a 98° frame.
@@ -68,6 +72,7 @@ impl AugmentRanges {
             noise_sigma: [0.0, 0.0],
             motion_blur_probability: 0.0,
             motion_blur_length: [1, 1],
+            marker_motion_blur_probability: 0.0,
             motion_blur_angle_deg: half_turn(),
             barrel_probability: 0.0,
             barrel_k1: [0.0, 0.0],
@@ -152,6 +157,29 @@ pub fn motion_blur(c: &mut Canvas, length: u32, angle: f32) {
                 acc += src.sample(x as f32 + t * dx, y as f32 + t * dy);
             }
             c.set(x, y, acc / length as f32);
+        }
+    }
+}
+
+/// Motion blur of the rectangle [x0, x1] × [y0, y1] only (clamped to the canvas).
+pub fn motion_blur_region(c: &mut Canvas, region: [f64; 4], length: u32, angle: f32) {
+    let x0 = region[0].floor().max(0.0) as u32;
+    let y0 = region[1].floor().max(0.0) as u32;
+    let x1 = (region[2].ceil().max(0.0) as u32).min(c.width.saturating_sub(1));
+    let y1 = (region[3].ceil().max(0.0) as u32).min(c.height.saturating_sub(1));
+    if x1 <= x0 || y1 <= y0 {
+        return;
+    }
+    let mut part = Canvas::new(x1 - x0 + 1, y1 - y0 + 1, 0.0);
+    for y in y0..=y1 {
+        for x in x0..=x1 {
+            part.set(x - x0, y - y0, c.get(x, y));
+        }
+    }
+    motion_blur(&mut part, length, angle);
+    for y in y0..=y1 {
+        for x in x0..=x1 {
+            c.set(x, y, part.get(x - x0, y - y0));
         }
     }
 }

@@ -1,11 +1,82 @@
-//! Procedural backgrounds: smooth gradients, value noise, and clutter that looks like markers
-//! (dark and light rectangles, bars, blobs), so that the detector learns what is *not* a marker.
+//! Backgrounds: random crops of the photographs in `assets/backgrounds/` (freely licensed, see
+//! the README there) or procedural textures (gradients, value noise), with clutter that looks like
+//! markers on top (dark and light rectangles and bars), so the detector learns what is *not* one.
 
 use super::Canvas;
+use crate::geometry::GrayImage;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
+use std::sync::OnceLock;
+
+/// Embedded so that the synthesiser needs no files (the web build has none).
+const PHOTOS: [&[u8]; 8] = [
+    include_bytes!("../../../assets/backgrounds/astronaut.png"),
+    include_bytes!("../../../assets/backgrounds/brick.png"),
+    include_bytes!("../../../assets/backgrounds/camera.png"),
+    include_bytes!("../../../assets/backgrounds/chelsea.png"),
+    include_bytes!("../../../assets/backgrounds/coffee.png"),
+    include_bytes!("../../../assets/backgrounds/grass.png"),
+    include_bytes!("../../../assets/backgrounds/gravel.png"),
+    include_bytes!("../../../assets/backgrounds/rocket.png"),
+];
+
+fn photos() -> &'static [GrayImage] {
+    static DECODED: OnceLock<Vec<GrayImage>> = OnceLock::new();
+    DECODED.get_or_init(|| {
+        PHOTOS
+            .iter()
+            .map(|bytes| {
+                super::decode_gray_png(bytes).expect("the embedded backgrounds are valid PNGs")
+            })
+            .collect()
+    })
+}
+
+/// A photograph, randomly cropped, scaled, flipped and re-lit to fill the canvas.
+fn photo(rng: &mut ChaCha8Rng, width: u32, height: u32) -> Canvas {
+    let all = photos();
+    let p = &all[rng.random_range(0..all.len())];
+    // Pixels of the photo per canvas pixel: from a zoomed-in crop to the whole photo squeezed.
+    let fit = (p.width as f32 / width as f32).min(p.height as f32 / height as f32);
+    let scale = fit * rng.random_range(0.3..1.0f32);
+    let (span_x, span_y) = (width as f32 * scale, height as f32 * scale);
+    let (x0, y0) = (
+        rng.random_range(0.0..=(p.width as f32 - span_x).max(0.0)),
+        rng.random_range(0.0..=(p.height as f32 - span_y).max(0.0)),
+    );
+    let flip = rng.random_bool(0.5);
+    let (gain, offset) = (
+        rng.random_range(0.6..1.2f32),
+        rng.random_range(-0.2..0.2f32),
+    );
+    let src = Canvas {
+        width: p.width,
+        height: p.height,
+        pixels: p.pixels.iter().map(|&v| v as f32 / 255.0).collect(),
+    };
+    let mut c = Canvas::new(width, height, 0.0);
+    for y in 0..height {
+        for x in 0..width {
+            let u = if flip { width - 1 - x } else { x };
+            let v = src.sample(x0 + u as f32 * scale, y0 + y as f32 * scale);
+            c.set(x, y, gain * v + offset);
+        }
+    }
+    c
+}
 
 pub fn procedural(rng: &mut ChaCha8Rng, width: u32, height: u32) -> Canvas {
+    let mut c = if rng.random_bool(0.5) {
+        photo(rng, width, height)
+    } else {
+        texture(rng, width, height)
+    };
+    clutter(&mut c, rng);
+    c.clamp();
+    c
+}
+
+fn texture(rng: &mut ChaCha8Rng, width: u32, height: u32) -> Canvas {
     let mut c = Canvas::new(width, height, 0.0);
     // A gradient between two random gray levels along a random direction.
     let (a, b) = (rng.random_range(0.1..0.9f32), rng.random_range(0.1..0.9f32));
@@ -31,6 +102,11 @@ pub fn procedural(rng: &mut ChaCha8Rng, width: u32, height: u32) -> Canvas {
             c.set(x, y, a + (b - a) * t + noise_gain * n);
         }
     }
+    c
+}
+
+fn clutter(c: &mut Canvas, rng: &mut ChaCha8Rng) {
+    let (width, height) = (c.width, c.height);
     // Clutter: rectangles and bars in dark or light gray, some of them square like tags.
     for _ in 0..rng.random_range(0..12) {
         let w = rng.random_range(0.02..0.3) * width as f32;
@@ -61,6 +137,4 @@ pub fn procedural(rng: &mut ChaCha8Rng, width: u32, height: u32) -> Canvas {
             }
         }
     }
-    c.clamp();
-    c
 }

@@ -159,6 +159,9 @@ pub struct Applied {
     pub blur_sigma: f32,
     pub noise_sigma: f32,
     pub motion_blur: Option<(u32, f32)>,
+    /// (marker ID, kernel length, angle) of each marker blurred on its own.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub marker_motion_blur: Vec<(usize, u32, f32)>,
     pub spotlight_gain: Option<f32>,
     pub barrel_k1: Option<f64>,
 }
@@ -180,6 +183,31 @@ pub struct Truth {
 pub struct Sample {
     pub image: GrayImage,
     pub truth: Truth,
+}
+
+/// Decodes a PNG (any bit depth or colour type) to 8-bit gray.
+pub fn decode_gray_png(bytes: &[u8]) -> Result<GrayImage, String> {
+    let mut decoder = png::Decoder::new(std::io::Cursor::new(bytes));
+    decoder.set_transformations(png::Transformations::EXPAND | png::Transformations::STRIP_16);
+    let mut reader = decoder.read_info().map_err(|e| e.to_string())?;
+    let mut buf = vec![0; reader.output_buffer_size()];
+    let info = reader.next_frame(&mut buf).map_err(|e| e.to_string())?;
+    let channels = info.color_type.samples();
+    let pixels = buf[..info.buffer_size()]
+        .chunks(channels)
+        .map(|p| {
+            if channels >= 3 {
+                ((p[0] as u32 * 299 + p[1] as u32 * 587 + p[2] as u32 * 114) / 1000) as u8
+            } else {
+                p[0]
+            }
+        })
+        .collect();
+    Ok(GrayImage {
+        width: info.width,
+        height: info.height,
+        pixels,
+    })
 }
 
 /// The seed of image `index` of a run seeded with `seed`.
@@ -237,7 +265,8 @@ pub fn synthesize(family: &Family, config: &SynthConfig, seed: u64) -> Result<Sa
             }
         }
     }
-    for (id, placement, _) in &placed {
+    let mut applied = Applied::default();
+    for (id, placement, region) in &placed {
         let black = draw(&mut rng, aug.marker_black) / 255.0;
         let white = draw(&mut rng, aug.marker_white) / 255.0;
         draw_marker(
@@ -248,9 +277,24 @@ pub fn synthesize(family: &Family, config: &SynthConfig, seed: u64) -> Result<Sa
             black,
             white.max(black),
         )?;
+        if aug.marker_motion_blur_probability > 0.0
+            && rng.random_bool(aug.marker_motion_blur_probability)
+        {
+            let length = rng.random_range(
+                aug.motion_blur_length[0]
+                    ..=aug.motion_blur_length[1].max(aug.motion_blur_length[0]),
+            );
+            let angle = draw(&mut rng, aug.motion_blur_angle_deg).to_radians();
+            let m = length as f64;
+            augment::motion_blur_region(
+                &mut canvas,
+                [region[0] - m, region[1] - m, region[2] + m, region[3] + m],
+                length,
+                angle,
+            );
+            applied.marker_motion_blur.push((*id, length, angle));
+        }
     }
-
-    let mut applied = Applied::default();
     if rng.random_bool(aug.spotlight_probability) {
         let gain = draw(&mut rng, aug.spotlight_gain);
         augment::spotlight(&mut canvas, &mut rng, gain);

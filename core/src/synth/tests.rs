@@ -145,3 +145,33 @@ fn camera_mode_records_the_pose_that_projects_the_roi() {
         }
     }
 }
+
+#[test]
+fn a_moving_marker_is_blurred_alone() {
+    let f = family("apriltag-36h11");
+    let mut c = SynthConfig::new(Mode::Quad);
+    c.augment = augment::AugmentRanges::none();
+    c.markers = [2, 2];
+    let still = synthesize(&f, &c, 21).unwrap();
+    c.augment.marker_motion_blur_probability = 1.0;
+    c.augment.motion_blur_length = [9, 9];
+    let moving = synthesize(&f, &c, 21).unwrap();
+    assert_eq!(
+        moving.truth.applied.marker_motion_blur.len(),
+        moving.truth.markers.len()
+    );
+    assert_eq!(still.truth.markers, moving.truth.markers);
+    // Inside a marker the pixels change; a pixel far from every marker does not.
+    assert_ne!(still.image, moving.image);
+    let far = (0..still.image.pixels.len()).find(|&i| {
+        let (x, y) = ((i % 320) as f64, (i / 320) as f64);
+        moving.truth.markers.iter().all(|m| {
+            x < m.bbox[0] - 20.0
+                || x > m.bbox[2] + 20.0
+                || y < m.bbox[1] - 20.0
+                || y > m.bbox[3] + 20.0
+        })
+    });
+    let far = far.expect("some pixel lies away from the markers");
+    assert_eq!(still.image.pixels[far], moving.image.pixels[far]);
+}
