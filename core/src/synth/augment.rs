@@ -14,6 +14,10 @@ pub struct AugmentRanges {
     pub marker_black: [f32; 2],
     /// Gray level a marker's white is drawn with (0–255).
     pub marker_white: [f32; 2],
+    /// Per-channel gain range of a random white balance, applied to the marker's colours before
+    /// they are turned to gray (families may use coloured patterns).
+    #[serde(default = "unit_gain")]
+    pub white_balance: [f32; 2],
     /// Probability and gain range of a spotlight (a radial brightening/darkening).
     pub spotlight_probability: f64,
     pub spotlight_gain: [f32; 2],
@@ -36,6 +40,10 @@ pub struct AugmentRanges {
     pub barrel_k1: [f64; 2],
 }
 
+fn unit_gain() -> [f32; 2] {
+    [1.0, 1.0]
+}
+
 fn half_turn() -> [f32; 2] {
     [0.0, 180.0]
 }
@@ -45,6 +53,7 @@ impl Default for AugmentRanges {
         Self {
             marker_black: [0.0, 90.0],
             marker_white: [150.0, 255.0],
+            white_balance: [0.85, 1.15],
             spotlight_probability: 0.3,
             spotlight_gain: [-0.35, 0.35],
             blur_sigma: [0.0, 1.5],
@@ -66,6 +75,7 @@ impl AugmentRanges {
         Self {
             marker_black: [0.0, 0.0],
             marker_white: [255.0, 255.0],
+            white_balance: unit_gain(),
             spotlight_probability: 0.0,
             spotlight_gain: [0.0, 0.0],
             blur_sigma: [0.0, 0.0],

@@ -269,6 +269,11 @@ pub fn synthesize(family: &Family, config: &SynthConfig, seed: u64) -> Result<Sa
     for (id, placement, region) in &placed {
         let black = draw(&mut rng, aug.marker_black) / 255.0;
         let white = draw(&mut rng, aug.marker_white) / 255.0;
+        let balance = [
+            draw(&mut rng, aug.white_balance),
+            draw(&mut rng, aug.white_balance),
+            draw(&mut rng, aug.white_balance),
+        ];
         draw_marker(
             &mut canvas,
             family,
@@ -276,6 +281,7 @@ pub fn synthesize(family: &Family, config: &SynthConfig, seed: u64) -> Result<Sa
             &placement.to_image,
             black,
             white.max(black),
+            balance,
         )?;
         if aug.marker_motion_blur_probability > 0.0
             && rng.random_bool(aug.marker_motion_blur_probability)
@@ -506,6 +512,7 @@ fn bbox(points: &[[f64; 2]]) -> [f64; 4] {
 
 /// Draws a marker (quiet zone included) through `to_image`, its black at `black` and white at
 /// `white`, from a raster at about the on-image resolution.
+#[allow(clippy::too_many_arguments)]
 fn draw_marker(
     canvas: &mut Canvas,
     family: &Family,
@@ -513,6 +520,7 @@ fn draw_marker(
     to_image: &Homography,
     black: f32,
     white: f32,
+    balance: [f32; 3],
 ) -> Result<(), String> {
     let scene = marker_scene(
         family,
@@ -540,10 +548,18 @@ fn draw_marker(
     let pixmap = raster::rasterize(&scene, px_per_unit).map_err(|e| e.to_string())?;
     let (pw, ph) = (pixmap.width() as usize, pixmap.height() as usize);
     let (scale_x, scale_y) = (pw as f64 / area.width(), ph as f64 / area.height());
+    // Luminance of the white-balanced colours (Rec. 709), clamped to the paper's white.
     let gray: Vec<f32> = pixmap
         .pixels()
         .iter()
-        .map(|p| p.green() as f32 / 255.0)
+        .map(|p| {
+            let (r, g, b) = (
+                p.red() as f32 * balance[0],
+                p.green() as f32 * balance[1],
+                p.blue() as f32 * balance[2],
+            );
+            ((0.2126 * r + 0.7152 * g + 0.0722 * b) / 255.0).min(1.0)
+        })
         .collect();
     let from_image = to_image
         .inverse()
