@@ -43,6 +43,55 @@ impl Camera {
         })
     }
 
+    /// Reads an OpenCV calibration file (`cv::FileStorage` YAML with `camera_matrix` and
+    /// `distortion_coefficients`, as written by OpenCV's calibration tools). The image size comes
+    /// from `image_width`/`image_height`, or from `size` when the file has none.
+    pub fn from_opencv_yaml(text: &str, size: Option<(u32, u32)>) -> Result<Self, String> {
+        let k = opencv_matrix(text, "camera_matrix")?;
+        if k.len() != 9 {
+            return Err(format!("camera_matrix has {} values, expected 9", k.len()));
+        }
+        let d = opencv_matrix(text, "distortion_coefficients").unwrap_or_default();
+        if d.len() > 5 && d[5..].iter().any(|&v| v != 0.0) {
+            return Err(format!(
+                "distortion_coefficients has {} terms; only OpenCV's first five (k1, k2, p1, p2, k3) are modelled",
+                d.len()
+            ));
+        }
+        let mut distortion = [0.0; 5];
+        for (slot, v) in distortion.iter_mut().zip(&d) {
+            *slot = *v;
+        }
+        let scalar = |key: &str| {
+            text.lines().find_map(|l| {
+                l.trim()
+                    .strip_prefix(key)?
+                    .strip_prefix(':')?
+                    .trim()
+                    .parse::<u32>()
+                    .ok()
+            })
+        };
+        let (width, height) = match (scalar("image_width"), scalar("image_height"), size) {
+            (Some(w), Some(h), _) => (w, h),
+            (_, _, Some(s)) => s,
+            _ => {
+                return Err("the file has no image_width/image_height; give the image size".into())
+            }
+        };
+        let camera = Self {
+            width,
+            height,
+            fx: k[0],
+            fy: k[4],
+            cx: k[2],
+            cy: k[5],
+            distortion,
+        };
+        camera.validate().map_err(|e| e.to_string())?;
+        Ok(camera)
+    }
+
     pub fn validate(&self) -> Result<(), GeometryError> {
         let finite = [self.fx, self.fy, self.cx, self.cy]
             .iter()
@@ -100,9 +149,72 @@ impl Camera {
     }
 }
 
+/// The `data: [...]` numbers of an `!!opencv-matrix` entry.
+fn opencv_matrix(text: &str, key: &str) -> Result<Vec<f64>, String> {
+    let start = text
+        .find(&format!("{key}:"))
+        .ok_or_else(|| format!("no {key} in the file"))?;
+    let rest = &text[start..];
+    let open = rest
+        .find("data:")
+        .and_then(|d| rest[d..].find('[').map(|b| d + b + 1));
+    let open = open.ok_or_else(|| format!("{key} has no data: [ ... ]"))?;
+    let close = rest[open..]
+        .find(']')
+        .ok_or_else(|| format!("{key}: unterminated data"))?
+        + open;
+    rest[open..close]
+        .split(',')
+        .map(|v| {
+            v.trim()
+                .parse::<f64>()
+                .map_err(|_| format!("{key}: {:?} is not a number", v.trim()))
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn shared(file: &str) -> String {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../shared/realimages/opencv_aruco_tutorial")
+            .join(file);
+        std::fs::read_to_string(path).unwrap()
+    }
+
+    /// Projections of three points through the calibration in `tutorial_camera_charuco.yml`
+    /// (k3 = 2.95, a strong model), computed by OpenCV 5.0.0's `cv2.projectPoints`.
+    #[test]
+    fn opencv_calibrations_import_and_project_as_opencv_does() {
+        let c = Camera::from_opencv_yaml(&shared("tutorial_camera_charuco.yml"), None).unwrap();
+        assert_eq!((c.width, c.height), (640, 480));
+        assert!(
+            (c.fx - 452.51072219637672).abs() < 1e-9
+                && (c.distortion[4] - 2.9542589406810080).abs() < 1e-12
+        );
+        let expected = [
+            ([0.1, -0.05, 1.0], [363.0079490373761, 254.88535279421745]),
+            ([-0.3, 0.2, 0.8], [147.11504559528254, 392.52888892800337]),
+            ([0.25, 0.18, 0.6], [508.1486926268699, 416.21652955575263]),
+        ];
+        for (p, q) in expected {
+            let ours = c.project(p);
+            assert!(
+                (ours[0] - q[0]).abs() < 1e-6 && (ours[1] - q[1]).abs() < 1e-6,
+                "{ours:?} vs {q:?}"
+            );
+        }
+        // A file without the image size needs it from the caller.
+        let params = shared("tutorial_camera_params.yml");
+        assert!(Camera::from_opencv_yaml(&params, None)
+            .unwrap_err()
+            .contains("image size"));
+        let c = Camera::from_opencv_yaml(&params, Some((640, 480))).unwrap();
+        assert!((c.fy - 628.156).abs() < 1e-9 && (c.distortion[2] - 0.00754589).abs() < 1e-12);
+        assert!(Camera::from_opencv_yaml("nothing here", None).is_err());
+    }
 
     #[test]
     fn the_papers_camera_has_the_right_focal_length() {
