@@ -191,8 +191,8 @@ mod tests {
         let c = Camera::from_opencv_yaml(&shared("tutorial_camera_charuco.yml"), None).unwrap();
         assert_eq!((c.width, c.height), (640, 480));
         assert!(
-            (c.fx - 452.51072219637672).abs() < 1e-9
-                && (c.distortion[4] - 2.9542589406810080).abs() < 1e-12
+            (c.fx - 452.510_722_196_376_7).abs() < 1e-9
+                && (c.distortion[4] - 2.954_258_940_681_008).abs() < 1e-12
         );
         let expected = [
             ([0.1, -0.05, 1.0], [363.0079490373761, 254.88535279421745]),
