@@ -75,7 +75,7 @@ pub enum EvalCommand {
     Score {
         /// Benchmark set folder (with set.json).
         set: PathBuf,
-        /// Detections JSON (format: see `tagsmith_core::eval`, or bench/README.md).
+        /// Detections JSON (format documented in core/src/eval/mod.rs and bench/README.md).
         detections: PathBuf,
         /// Report folder [default: SET/report-DETECTOR].
         #[arg(short, long)]
