@@ -6,6 +6,7 @@
 use super::set::{BenchmarkSet, Group};
 use super::{Detection, DetectionsFile, PoseJson};
 use crate::family::Family;
+use crate::geometry::bounding_box;
 use crate::pose::{marker_plane_points, solve_planar, Pose};
 use crate::synth::MarkerTruth;
 use nalgebra::{Matrix3, Rotation3, Vector3};
@@ -111,19 +112,6 @@ fn iou(a: [f64; 4], b: [f64; 4]) -> f64 {
     }
 }
 
-fn bbox(points: &[[f64; 2]]) -> [f64; 4] {
-    points
-        .iter()
-        .fold([f64::MAX, f64::MAX, f64::MIN, f64::MIN], |b, p| {
-            [
-                b[0].min(p[0]),
-                b[1].min(p[1]),
-                b[2].max(p[0]),
-                b[3].max(p[1]),
-            ]
-        })
-}
-
 fn judge(
     set: &BenchmarkSet,
     family: Option<&Family>,
@@ -137,11 +125,10 @@ fn judge(
         if !d.corners.iter().flatten().all(|v| v.is_finite()) {
             continue;
         }
-        let boxed = bbox(&d.corners);
-        let hit = truth
-            .iter()
-            .enumerate()
-            .find(|(i, t)| !used[*i] && t.id == d.id && iou(boxed, bbox(&t.roi[..4])) >= 0.5);
+        let boxed = bounding_box(&d.corners);
+        let hit = truth.iter().enumerate().find(|(i, t)| {
+            !used[*i] && t.id == d.id && iou(boxed, bounding_box(&t.roi[..4])) >= 0.5
+        });
         let Some((i, t)) = hit else { continue };
         used[i] = true;
         let detected = d.pose.as_ref().map(pose_from_json).or_else(|| {

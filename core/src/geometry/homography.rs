@@ -14,15 +14,7 @@ impl Homography {
     /// coordinate units (pixels, millimetres, cells). With more than four points it is the
     /// algebraic least-squares solution.
     pub fn from_points(src: &[[f64; 2]], dst: &[[f64; 2]]) -> Result<Self, GeometryError> {
-        if src.len() != dst.len() {
-            return Err(GeometryError::Mismatch(src.len(), dst.len()));
-        }
-        if src.len() < 4 {
-            return Err(GeometryError::TooFewPoints(src.len(), 4));
-        }
-        if src.iter().chain(dst).flatten().any(|v| !v.is_finite()) {
-            return Err(GeometryError::NotFinite);
-        }
+        super::check_correspondences(src, dst, 4)?;
         let (ts, ns) = normalise(src)?;
         let (td, nd) = normalise(dst)?;
         let n = src.len();

@@ -24,3 +24,35 @@ pub enum GeometryError {
     #[error("the camera parameters are not valid: {0}")]
     BadCamera(&'static str),
 }
+
+/// Axis-aligned bounds of points: [min x, min y, max x, max y].
+pub fn bounding_box(points: &[[f64; 2]]) -> [f64; 4] {
+    points
+        .iter()
+        .fold([f64::MAX, f64::MAX, f64::MIN, f64::MIN], |b, p| {
+            [
+                b[0].min(p[0]),
+                b[1].min(p[1]),
+                b[2].max(p[0]),
+                b[3].max(p[1]),
+            ]
+        })
+}
+
+/// Checks two lists of corresponding points: equal lengths, at least `min`, all finite.
+pub fn check_correspondences(
+    a: &[[f64; 2]],
+    b: &[[f64; 2]],
+    min: usize,
+) -> Result<(), GeometryError> {
+    if a.len() != b.len() {
+        return Err(GeometryError::Mismatch(a.len(), b.len()));
+    }
+    if a.len() < min {
+        return Err(GeometryError::TooFewPoints(a.len(), min));
+    }
+    if a.iter().chain(b).flatten().any(|v| !v.is_finite()) {
+        return Err(GeometryError::NotFinite);
+    }
+    Ok(())
+}

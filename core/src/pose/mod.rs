@@ -5,7 +5,7 @@
 //! z out of the marker face (towards a camera that sees it). Poses map marker to camera frame.
 
 use crate::family::Family;
-use crate::geometry::{Camera, GeometryError, Homography};
+use crate::geometry::{check_correspondences, Camera, GeometryError, Homography};
 use nalgebra::{DMatrix, DVector, Matrix3, Rotation3, Vector3};
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -73,15 +73,7 @@ pub fn solve_planar(
     image: &[[f64; 2]],
 ) -> Result<PnpSolution, GeometryError> {
     camera.validate()?;
-    if object.len() != image.len() {
-        return Err(GeometryError::Mismatch(object.len(), image.len()));
-    }
-    if object.len() < 4 {
-        return Err(GeometryError::TooFewPoints(object.len(), 4));
-    }
-    if object.iter().chain(image).flatten().any(|v| !v.is_finite()) {
-        return Err(GeometryError::NotFinite);
-    }
+    check_correspondences(object, image, 4)?;
     let normalised: Vec<[f64; 2]> = image.iter().map(|&p| camera.normalise(p)).collect();
     let start = decompose(&Homography::from_points(object, &normalised)?)?;
     refine(camera, object, image, start)

@@ -9,7 +9,7 @@ mod background;
 pub mod contact;
 
 use crate::family::Family;
-use crate::geometry::{Camera, GrayImage, Homography};
+use crate::geometry::{bounding_box, Camera, GrayImage, Homography};
 use crate::pose::{marker_plane_points, Pose};
 use crate::render::{marker_scene, raster, SceneOptions};
 use augment::{draw, AugmentRanges};
@@ -247,7 +247,7 @@ pub fn synthesize(family: &Family, config: &SynthConfig, seed: u64) -> Result<Sa
                 Mode::Camera => place_camera(family, &mut rng, config, &camera),
             }?;
             let outline = project_outline(family, &placement.to_image);
-            let b = bbox(&outline);
+            let b = bounding_box(&outline);
             let inside = b[0] >= 0.0
                 && b[1] >= 0.0
                 && b[2] < config.width as f64
@@ -497,19 +497,6 @@ fn project_outline(family: &Family, h: &Homography) -> Vec<[f64; 2]> {
     outline_units(family).iter().map(|&p| h.apply(p)).collect()
 }
 
-fn bbox(points: &[[f64; 2]]) -> [f64; 4] {
-    points
-        .iter()
-        .fold([f64::MAX, f64::MAX, f64::MIN, f64::MIN], |b, p| {
-            [
-                b[0].min(p[0]),
-                b[1].min(p[1]),
-                b[2].max(p[0]),
-                b[3].max(p[1]),
-            ]
-        })
-}
-
 /// Draws a marker (quiet zone included) through `to_image`, its black at `black` and white at
 /// `white`, from a raster at about the on-image resolution.
 #[allow(clippy::too_many_arguments)]
@@ -564,7 +551,7 @@ fn draw_marker(
     let from_image = to_image
         .inverse()
         .ok_or("the marker placement is degenerate")?;
-    let b = bbox(&img);
+    let b = bounding_box(&img);
     let (x0, y0) = (b[0].floor().max(0.0) as u32, b[1].floor().max(0.0) as u32);
     let (x1, y1) = (
         (b[2].ceil() as i64).min(canvas.width as i64 - 1),
@@ -652,7 +639,7 @@ fn marker_truth(
     let mask: Vec<[f64; 2]> = outline_units(family).into_iter().map(project).collect();
     MarkerTruth {
         id,
-        bbox: bbox(&mask),
+        bbox: bounding_box(&mask),
         roi: family.roi_points().iter().map(|&p| project(p)).collect(),
         keypoints,
         mask,
