@@ -3,6 +3,7 @@
 //! rotations the layout admits, and the parsed codebook.
 
 pub mod designs;
+pub mod edit;
 mod error;
 mod geometry;
 mod load;
