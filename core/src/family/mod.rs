@@ -133,6 +133,12 @@ impl Family {
     pub fn cell_size(&self) -> f64 {
         self.keypoints.iter().map(|k| k.size).fold(0.0, f64::max)
     }
+    /// Whether a quiet zone (marker units) is thinner than one cell: detectors need a light
+    /// margin at least that wide.
+    pub fn quiet_zone_is_thin(&self, quiet_zone: f64) -> bool {
+        quiet_zone < self.cell_size() - 1e-9
+    }
+
     pub fn is_grid(&self) -> bool {
         matches!(self.spec.layout, spec::Layout::Grid(_))
     }
@@ -159,7 +165,7 @@ impl Family {
     /// Non-fatal remarks about the design (printing and decoding risks).
     pub fn warnings(&self) -> Vec<String> {
         let mut out = Vec::new();
-        if self.quiet_zone < self.cell_size() - 1e-9 {
+        if self.quiet_zone_is_thin(self.quiet_zone) {
             out.push(format!(
                 "{}: the quiet zone ({:.2} units) is thinner than one cell ({:.2}); detectors need a \
                  light margin around the marker",

@@ -58,7 +58,7 @@ pub(super) fn build(spec: FamilySpec) -> Result<Family, FamilyError> {
         return Err(FamilyError::new(problems));
     }
 
-    let mut code_keypoints = vec![0; 0];
+    let mut code_keypoints = Vec::new();
     for (i, k) in keypoints.iter().enumerate() {
         if let Assignment::Symbol(n) = k.assignment {
             debug_assert_eq!(n, code_keypoints.len());

@@ -189,7 +189,7 @@ pub fn layout_sheet(family: &Family, params: &SheetParams) -> Result<Sheet, Rend
 
     let mut warnings = Vec::new();
     let qz = params.quiet_zone.unwrap_or(family.quiet_zone());
-    if qz < family.cell_size() - 1e-9 {
+    if family.quiet_zone_is_thin(qz) {
         warnings.push(format!(
             "the quiet zone ({:.2} mm) is thinner than one cell ({:.2} mm): detectors need a light margin",
             qz * probe.scale,
