@@ -24,6 +24,8 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 pub enum Command {
+    /// Open the studio window (the default when no command is given).
+    Studio(StudioArgs),
     /// List the built-in families with one-line stats.
     Families,
     /// Render one marker to SVG (exact mm) or PNG.
@@ -262,6 +264,7 @@ type Result<T> = std::result::Result<T, CliError>;
 
 pub fn run(command: Command) -> Result<()> {
     match command {
+        Command::Studio(a) => crate::studio(a),
         Command::Families => families(),
         Command::Render(a) => render(a),
         Command::Sheet(a) => sheet(a),
@@ -278,8 +281,20 @@ pub fn run(command: Command) -> Result<()> {
     }
 }
 
+#[derive(clap::Args, Debug, Default)]
+pub struct StudioArgs {
+    /// Start designing from this family: a built-in (duplicated) or a family JSON file (edited).
+    pub family: Option<String>,
+    /// The panel to show first.
+    #[arg(long, value_parser = ["families", "designer", "print"])]
+    pub panel: Option<String>,
+    /// Start from a clean slate instead of the design kept from the last session.
+    #[arg(long)]
+    pub fresh: bool,
+}
+
 /// A built-in name, or a path to a family file.
-fn load_family(name_or_path: &str) -> Result<Family> {
+pub fn load_family(name_or_path: &str) -> Result<Family> {
     if let Some(found) = tagsmith::builtin::get(name_or_path) {
         return found.map_err(bad);
     }

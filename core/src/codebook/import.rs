@@ -156,6 +156,56 @@ impl AprilTag3Table {
 }
 
 /// The low `len` bits of a hex number, most significant first.
+/// A standard table read for a design whose code has `code_len` binary symbols.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ImportedTable {
+    pub name: String,
+    pub source: String,
+    pub codes: Vec<Vec<u8>>,
+    pub min_distance: Option<u32>,
+}
+
+/// Reads either table format (OpenCV dictionary dump or AprilTag 3 family) and checks that its
+/// codes fit a design with `code_len` binary code cells. The codes stay in Tagsmith's row-major
+/// order, so they are only meaningful when the design's data cells sit where the table's do
+/// (a square block of data cells, for OpenCV tables).
+pub fn import_table(json: &str, code_len: usize) -> Result<ImportedTable, String> {
+    let value: serde_json::Value =
+        serde_json::from_str(json).map_err(|e| format!("not a JSON table: {e}"))?;
+    let table = if value.get("bits_per_side").is_some() {
+        let t = OpenCvTable::parse(json)?;
+        ImportedTable {
+            codes: t.bits()?,
+            min_distance: t.min_hamming_distance_with_rotations,
+            source: format!("{} ({})", t.name, t.source),
+            name: t.name,
+        }
+    } else if value.get("bit_x").is_some() {
+        let t = AprilTag3Table::parse(json)?;
+        ImportedTable {
+            codes: t.to_grid()?.codes,
+            min_distance: Some(t.h),
+            source: format!(
+                "{} ({}), turned 180° into OpenCV's convention",
+                t.name, t.source
+            ),
+            name: t.name,
+        }
+    } else {
+        return Err(
+            "neither an OpenCV dictionary (bits_per_side) nor an AprilTag 3 table (bit_x)".into(),
+        );
+    };
+    let len = table.codes.first().map_or(0, Vec::len);
+    if len != code_len {
+        return Err(format!(
+            "table {} has {len}-bit codes but this design has {code_len} code cells",
+            table.name
+        ));
+    }
+    Ok(table)
+}
+
 fn hex_bits(text: &str, len: usize) -> Result<Vec<u8>, String> {
     let mut bits = Vec::with_capacity(text.len() * 4);
     for c in text.chars() {
@@ -174,4 +224,39 @@ fn hex_bits(text: &str, len: usize) -> Result<Vec<u8>, String> {
         return Err(format!("{text:?} has more than {len} bits"));
     }
     Ok(bits[extra..].to_vec())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn table(name: &str) -> String {
+        let dir =
+            std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/codebooks");
+        std::fs::read_to_string(dir.join(name)).expect("the shared code tables")
+    }
+
+    #[test]
+    fn both_table_formats_import_and_agree_on_36h11() {
+        let opencv = import_table(&table("apriltag_36h11.json"), 36).unwrap();
+        let april = import_table(&table("apriltag3/tag36h11.json"), 36).unwrap();
+        assert_eq!(opencv.codes.len(), 587);
+        assert_eq!(
+            opencv.codes, april.codes,
+            "AprilTag's table, turned, is OpenCV's"
+        );
+        assert_eq!(april.min_distance, Some(11));
+    }
+
+    #[test]
+    fn a_table_that_does_not_fit_the_design_is_refused_by_name() {
+        let e = import_table(&table("4x4_50.json"), 36).unwrap_err();
+        assert!(
+            e.contains("16-bit codes") && e.contains("36 code cells"),
+            "{e}"
+        );
+        let e = import_table("{\"codes\": []}", 36).unwrap_err();
+        assert!(e.contains("neither"), "{e}");
+        assert!(import_table("not json", 36).is_err());
+    }
 }

@@ -37,7 +37,17 @@ pub enum Edit {
         col: u32,
         value: CellValue,
     },
+    /// Concentric rings of `slots` dot positions each (RuneTag-style); radii in marker units.
+    SetRings {
+        radii: Vec<f64>,
+        slots: u32,
+        dot_radius_ratio: f64,
+        start_angle_deg: f64,
+    },
     SetQuietZone(f64),
+    SetDescription(String),
+    /// Page colour around and between the keypoints, as `#rrggbb`.
+    SetBackground(String),
     AddCategory {
         name: String,
         role: Role,
@@ -61,6 +71,9 @@ pub enum Edit {
     RemoveExtra(usize),
     SetCodebook(CodebookSpec),
     SetMarkerSide(f64),
+    SetPrintLabels(bool),
+    /// How far beyond the ROI the rectified template reaches (DESIGN §2, a = 0.15 by default).
+    SetRoiMargin(f64),
 }
 
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -88,6 +101,16 @@ pub fn apply(spec: &FamilySpec, edit: &Edit) -> Result<FamilySpec, EditError> {
             frame,
         } => set_grid(&mut s, *size, *border, frame)?,
         Edit::SetCell { row, col, value } => set_cell(&mut s, *row, *col, value)?,
+        Edit::SetRings {
+            radii,
+            slots,
+            dot_radius_ratio,
+            start_angle_deg,
+        } => set_rings(&mut s, radii, *slots, *dot_radius_ratio, *start_angle_deg)?,
+        Edit::SetDescription(d) => s.description = d.clone(),
+        Edit::SetBackground(b) => s.background = b.clone(),
+        Edit::SetPrintLabels(on) => s.print.labels = *on,
+        Edit::SetRoiMargin(m) => s.roi.margin = *m,
         Edit::SetQuietZone(q) => match &mut s.layout {
             Layout::Grid(g) => g.quiet_zone = *q,
             Layout::Rings(r) => r.quiet_zone = *q,
@@ -276,6 +299,42 @@ fn set_grid(s: &mut FamilySpec, size: u32, border: u32, frame: &str) -> Result<(
     Ok(())
 }
 
+fn set_rings(
+    s: &mut FamilySpec,
+    radii: &[f64],
+    slots: u32,
+    dot_radius_ratio: f64,
+    start_angle_deg: f64,
+) -> Result<(), EditError> {
+    if radii.is_empty() || slots == 0 {
+        return Err(EditError::Layout(
+            "a ring layout needs at least one ring with at least one slot".into(),
+        ));
+    }
+    let quiet_zone = match &s.layout {
+        Layout::Rings(r) => r.quiet_zone,
+        Layout::Grid(_) => 0.2,
+    };
+    let switching = matches!(s.layout, Layout::Grid(_));
+    s.layout = Layout::Rings(RingsLayout {
+        radii: radii.to_vec(),
+        slots,
+        dot_radius_ratio,
+        start_angle_deg,
+        quiet_zone,
+    });
+    // Grid cell keys mean nothing on rings; the ROI of a fresh ring design is the square around
+    // the outer ring, which the designer then refines by clicking.
+    if switching {
+        let r = radii.iter().cloned().fold(0.0, f64::max);
+        s.roi.points = vec![[-r, -r], [r, -r], [r, r], [-r, r]];
+        if let KeypointSet::Custom(_) = s.keypoint_set {
+            s.keypoint_set = KeypointSet::All;
+        }
+    }
+    Ok(())
+}
+
 fn set_cell(s: &mut FamilySpec, row: u32, col: u32, value: &CellValue) -> Result<(), EditError> {
     if let CellValue::Fixed(name) = value {
         if index(s, name).is_none() {
@@ -315,6 +374,8 @@ pub struct History {
     past: VecDeque<FamilySpec>,
     future: Vec<FamilySpec>,
     limit: usize,
+    /// The group of the last edit, while it may still absorb the next one (see `apply_grouped`).
+    open_group: Option<String>,
 }
 
 impl History {
@@ -326,6 +387,7 @@ impl History {
             past: VecDeque::new(),
             future: Vec::new(),
             limit: Self::DEFAULT_LIMIT,
+            open_group: None,
         }
     }
 
@@ -335,6 +397,29 @@ impl History {
 
     /// Applies an edit; on success it becomes undoable and clears the redo list.
     pub fn apply(&mut self, edit: &Edit) -> Result<(), EditError> {
+        self.open_group = None;
+        self.push(edit)
+    }
+
+    /// Applies an edit that continues a gesture (dragging a size slider sends one edit per frame):
+    /// consecutive edits of the same `group` are one undo step. `end_group` closes the gesture.
+    pub fn apply_grouped(&mut self, edit: &Edit, group: &str) -> Result<(), EditError> {
+        if self.open_group.as_deref() == Some(group) && !self.past.is_empty() {
+            let next = apply(&self.current, edit)?;
+            self.current = next;
+            self.future.clear();
+            return Ok(());
+        }
+        self.push(edit)?;
+        self.open_group = Some(group.to_string());
+        Ok(())
+    }
+
+    pub fn end_group(&mut self) {
+        self.open_group = None;
+    }
+
+    fn push(&mut self, edit: &Edit) -> Result<(), EditError> {
         let next = apply(&self.current, edit)?;
         if next != self.current {
             self.past
@@ -348,6 +433,7 @@ impl History {
     }
 
     pub fn undo(&mut self) -> bool {
+        self.open_group = None;
         match self.past.pop_back() {
             Some(prev) => {
                 self.future.push(std::mem::replace(&mut self.current, prev));
@@ -358,6 +444,7 @@ impl History {
     }
 
     pub fn redo(&mut self) -> bool {
+        self.open_group = None;
         match self.future.pop() {
             Some(next) => {
                 self.past
@@ -370,6 +457,10 @@ impl History {
 
     pub fn can_undo(&self) -> usize {
         self.past.len()
+    }
+
+    pub fn can_redo(&self) -> usize {
+        self.future.len()
     }
 }
 

@@ -8,5 +8,6 @@ pub mod readback;
 pub mod scene;
 pub mod sheet;
 pub mod svg;
+pub mod template;
 
 pub use scene::{marker_scene, MarkerScene, RenderError, SceneOptions};

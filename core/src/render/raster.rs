@@ -73,3 +73,61 @@ pub fn gray_at(pixmap: &Pixmap, x: u32, y: u32) -> f64 {
     let p = pixmap.pixel(x, y).expect("inside the image");
     Rgb(p.red(), p.green(), p.blue()).luminance() * 255.0
 }
+
+/// Renders an SVG made by this crate (a sheet page) `width_px` pixels wide on white, with the
+/// embedded label font: the studio's live print preview.
+pub fn rasterize_svg(svg: &str, width_px: u32) -> Result<Pixmap, RenderError> {
+    let tree = super::pdf::parse_svg(svg)?;
+    let size = tree.size();
+    let scale = width_px as f32 / size.width();
+    let height_px = (size.height() * scale).round().max(1.0) as u32;
+    let mut pixmap = Pixmap::new(width_px.max(1), height_px).ok_or_else(|| {
+        RenderError::Layout(format!(
+            "a {width_px}×{height_px} px preview is not possible"
+        ))
+    })?;
+    pixmap.fill(tiny_skia::Color::WHITE);
+    resvg::render(
+        &tree,
+        Transform::from_scale(scale, scale),
+        &mut pixmap.as_mut(),
+    );
+    Ok(pixmap)
+}
+
+/// One category's pattern on the family background, `px` pixels square, with the keypoint's cell
+/// spanning the middle `1 / view` of the image (patterns may spill over their cell a little).
+pub fn category_swatch(
+    pattern: &super::primitives::CategoryPattern,
+    background: Rgb,
+    px: u32,
+    view: f64,
+) -> Result<Pixmap, RenderError> {
+    let mut pixmap = Pixmap::new(px.max(1), px.max(1))
+        .ok_or_else(|| RenderError::Layout(format!("a {px} px swatch is not possible")))?;
+    pixmap.fill(tiny_skia::Color::from_rgba8(
+        background.0,
+        background.1,
+        background.2,
+        255,
+    ));
+    let s = (px as f64 / view) as f32;
+    // Cell coordinates are relative to the keypoint, so the centre of the image is (0, 0).
+    let t = Transform::from_scale(s, s).post_translate(px as f32 / 2.0, px as f32 / 2.0);
+    for item in &pattern.items {
+        let Some(path) = to_skia(&item.path.0) else {
+            continue;
+        };
+        if let Some(c) = item.fill {
+            pixmap.fill_path(&path, &paint(c), FillRule::Winding, t, None);
+        }
+        if let Some((c, width)) = item.stroke {
+            let stroke = Stroke {
+                width: width as f32,
+                ..Stroke::default()
+            };
+            pixmap.stroke_path(&path, &paint(c), &stroke, t, None);
+        }
+    }
+    Ok(pixmap)
+}

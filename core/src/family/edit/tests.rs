@@ -186,3 +186,52 @@ fn impossible_edits_are_errors_and_change_nothing() {
     h.undo();
     Family::from_spec(h.current().clone()).unwrap();
 }
+
+#[test]
+fn a_dragged_slider_is_one_undo_step() {
+    let mut h = History::new(spec("aruco-4x4_50"));
+    for mm in [41.0, 42.0, 43.0, 44.0] {
+        h.apply_grouped(&Edit::SetMarkerSide(mm), "side").unwrap();
+    }
+    h.end_group();
+    h.apply_grouped(&Edit::SetMarkerSide(50.0), "side").unwrap();
+    assert_eq!(h.can_undo(), 2, "two gestures, two undo steps");
+    assert!(h.undo());
+    assert_eq!(h.current().print.marker_side_mm, 44.0);
+    assert!(h.undo());
+    assert_eq!(h.current().print.marker_side_mm, 40.0);
+}
+
+#[test]
+fn switching_a_grid_design_to_rings_gives_a_valid_ring_family() {
+    let mut h = History::new(spec("runetag"));
+    h.apply(&Edit::SetRings {
+        radii: vec![0.5, 0.75, 1.0],
+        slots: 20,
+        dot_radius_ratio: 0.08,
+        start_angle_deg: -90.0,
+    })
+    .unwrap();
+    let f = Family::from_spec(h.current().clone()).unwrap();
+    assert_eq!(f.code_len(), 60, "3 rings × 20 slots");
+    assert!(
+        h.apply(&Edit::SetRings {
+            radii: vec![],
+            slots: 20,
+            dot_radius_ratio: 0.08,
+            start_angle_deg: 0.0,
+        })
+        .is_err(),
+        "no rings is refused"
+    );
+    // From a grid: the ROI becomes the outer ring's square.
+    let mut g = History::new(spec("aruco-4x4_50"));
+    g.apply(&Edit::SetRings {
+        radii: vec![1.0],
+        slots: 16,
+        dot_radius_ratio: 0.1,
+        start_angle_deg: -90.0,
+    })
+    .unwrap();
+    assert_eq!(g.current().roi.points[0], [-1.0, -1.0]);
+}

@@ -1,0 +1,194 @@
+//! The Families panel: built-in families, the user's own (their folder, files opened or dropped),
+//! and the way into the designer (duplicate a built-in, edit one of the user's).
+
+use super::files::{user_families, FileAccess, OpenedFile};
+use super::Studio;
+use std::path::PathBuf;
+use tagsmith::family::FamilySpec;
+
+#[derive(Debug, Clone, PartialEq)]
+pub enum Origin {
+    Builtin,
+    /// In the user's family folder.
+    UserFolder(PathBuf),
+    /// Opened or dropped this session (`path` when it is a file on disk).
+    Opened {
+        name: String,
+        path: Option<PathBuf>,
+    },
+}
+
+#[derive(Debug, Clone)]
+pub struct Entry {
+    pub spec: FamilySpec,
+    pub origin: Origin,
+}
+
+#[derive(Default)]
+pub struct Library {
+    pub entries: Vec<Entry>,
+    pub selected: Option<usize>,
+}
+
+impl Library {
+    /// Re-reads the built-ins and the user folder (keeping files opened this session). Returns
+    /// one message per user file that does not load.
+    pub fn reload(&mut self, files: &dyn FileAccess) -> Vec<String> {
+        let selected = self.selected_name();
+        let opened: Vec<Entry> = self
+            .entries
+            .drain(..)
+            .filter(|e| matches!(e.origin, Origin::Opened { .. }))
+            .collect();
+        for name in tagsmith::builtin::names() {
+            if let Some(Ok(f)) = tagsmith::builtin::get(name) {
+                self.entries.push(Entry {
+                    spec: f.spec().clone(),
+                    origin: Origin::Builtin,
+                });
+            }
+        }
+        let mut problems = Vec::new();
+        for file in user_families(files) {
+            match parse(&file) {
+                Ok(spec) => self.entries.push(Entry {
+                    spec,
+                    origin: Origin::UserFolder(file.path.clone().unwrap_or_default()),
+                }),
+                Err(e) => problems.push(e),
+            }
+        }
+        for e in opened {
+            if !self.entries.iter().any(|x| same_file(x, &e)) {
+                self.entries.push(e);
+            }
+        }
+        self.selected = selected.and_then(|n| self.entries.iter().position(|e| e.spec.name == n));
+        problems
+    }
+
+    fn selected_name(&self) -> Option<String> {
+        self.selected
+            .and_then(|i| self.entries.get(i))
+            .map(|e| e.spec.name.clone())
+    }
+
+    /// Adds an opened file if it is a valid family; the error names the file and the field.
+    pub fn add_opened(&mut self, file: &OpenedFile) -> Result<FamilySpec, String> {
+        let spec = parse(file)?;
+        let entry = Entry {
+            spec: spec.clone(),
+            origin: Origin::Opened {
+                name: file.name.clone(),
+                path: file.path.clone(),
+            },
+        };
+        self.entries.retain(|e| !same_file(e, &entry));
+        self.entries.push(entry);
+        self.selected = Some(self.entries.len() - 1);
+        Ok(spec)
+    }
+}
+
+fn same_file(a: &Entry, b: &Entry) -> bool {
+    let path = |e: &Entry| match &e.origin {
+        Origin::UserFolder(p) => Some(p.clone()),
+        Origin::Opened { path, .. } => path.clone(),
+        Origin::Builtin => None,
+    };
+    match (&a.origin, &b.origin) {
+        (
+            Origin::Opened {
+                name: x,
+                path: None,
+            },
+            Origin::Opened {
+                name: y,
+                path: None,
+            },
+        ) => x == y,
+        _ => path(a).is_some() && path(a) == path(b),
+    }
+}
+
+/// A family file through the core's loader: every problem as `file: json.path: message`.
+fn parse(file: &OpenedFile) -> Result<FamilySpec, String> {
+    let text = std::str::from_utf8(&file.bytes)
+        .map_err(|_| format!("{}: not a text (UTF-8) file", file.name))?;
+    tagsmith::family::from_json_str(text)
+        .map(|f| f.spec().clone())
+        .map_err(|e| e.in_file(&file.name).to_string())
+}
+
+pub fn show(studio: &mut Studio, ui: &mut egui::Ui) {
+    ui.heading("Families");
+    ui.label("Pick a family. Duplicate a built-in to start a new design, or edit one of your own.");
+    if let Some(dir) = studio.files.user_folder() {
+        ui.weak(format!("Your families folder: {}", dir.display()));
+    }
+    ui.add_space(6.0);
+    let mut action = None;
+    ui.horizontal(|ui| {
+        let selected = studio
+            .library
+            .selected
+            .and_then(|i| studio.library.entries.get(i));
+        let is_builtin = selected.is_some_and(|e| e.origin == Origin::Builtin);
+        if ui
+            .add_enabled(
+                selected.is_some(),
+                egui::Button::new("Duplicate as new design"),
+            )
+            .clicked()
+        {
+            action = Some(true);
+        }
+        if ui
+            .add_enabled(selected.is_some() && !is_builtin, egui::Button::new("Edit"))
+            .on_disabled_hover_text("built-in families are duplicated, not edited")
+            .clicked()
+        {
+            action = Some(false);
+        }
+        if ui.button("Reload folder").clicked() {
+            studio.reload_library();
+        }
+    });
+    ui.separator();
+    egui::ScrollArea::vertical().show(ui, |ui| {
+        egui::Grid::new("families")
+            .num_columns(3)
+            .striped(true)
+            .show(ui, |ui| {
+                for (i, e) in studio.library.entries.iter().enumerate() {
+                    let selected = studio.library.selected == Some(i);
+                    if ui.selectable_label(selected, &e.spec.name).clicked() {
+                        studio.library.selected = Some(i);
+                    }
+                    ui.label(&e.spec.title);
+                    ui.weak(match &e.origin {
+                        Origin::Builtin => "built-in".to_string(),
+                        Origin::UserFolder(_) => "your folder".to_string(),
+                        Origin::Opened { name, .. } => format!("opened: {name}"),
+                    });
+                    ui.end_row();
+                }
+            });
+    });
+    if let Some(duplicate) = action {
+        let entry = studio.library.entries[studio.library.selected.expect("enabled")].clone();
+        if duplicate {
+            let mut spec = entry.spec;
+            spec.name = format!("{}-copy", spec.name);
+            spec.title = format!("{} (copy)", spec.title);
+            studio.start_design(spec, None, false);
+        } else {
+            let path = match entry.origin {
+                Origin::UserFolder(p) => Some(p),
+                Origin::Opened { path, .. } => path,
+                Origin::Builtin => None,
+            };
+            studio.start_design(entry.spec, path, true);
+        }
+    }
+}

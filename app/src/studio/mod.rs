@@ -1,0 +1,475 @@
+//! The Tagsmith studio: design a marker family, see it live, print it. One egui application for
+//! the desktop and the browser. It holds no vision logic: every change is a
+//! `tagsmith::family::edit::Edit`, every picture and file comes from `tagsmith::render`.
+
+pub mod codegen;
+pub mod design;
+pub mod designer;
+pub mod families;
+pub mod files;
+pub mod preview;
+pub mod print;
+
+use design::Design;
+use egui::{Key, KeyboardShortcut, Modifiers};
+use files::{FileAccess, OpenedFile, Purpose};
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+use tagsmith::family::FamilySpec;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Panel {
+    Families,
+    Designer,
+    Print,
+}
+
+/// The message line at the bottom of the window.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Notice {
+    Info(String),
+    Error(String),
+}
+
+/// What survives a restart (eframe persistence): the design, saved or not, and the print setup.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct Persisted {
+    pub panel: Option<Panel>,
+    pub design: Option<FamilySpec>,
+    pub saved: Option<FamilySpec>,
+    pub path: Option<PathBuf>,
+    pub print: print::PrintSettings,
+}
+
+/// A design change that would drop unsaved work, waiting for the user's confirmation.
+struct PendingReplace {
+    spec: FamilySpec,
+    path: Option<PathBuf>,
+    saved: bool,
+}
+
+pub struct Studio {
+    pub panel: Panel,
+    pub library: families::Library,
+    pub design: Option<Design>,
+    pub notice: Option<Notice>,
+    pub files: Box<dyn FileAccess>,
+    pub designer: designer::DesignerState,
+    pub print: print::PrintState,
+    textures: preview::Textures,
+    pending_replace: Option<PendingReplace>,
+    /// The window was asked to close with unsaved changes; the confirmation is showing.
+    pub quit_prompt: bool,
+    quit_confirmed: bool,
+}
+
+impl Studio {
+    pub fn new(files: Box<dyn FileAccess>) -> Self {
+        let mut studio = Self {
+            panel: Panel::Families,
+            library: families::Library::default(),
+            design: None,
+            notice: None,
+            files,
+            designer: designer::DesignerState::default(),
+            print: print::PrintState::default(),
+            textures: preview::Textures::default(),
+            pending_replace: None,
+            quit_prompt: false,
+            quit_confirmed: false,
+        };
+        studio.reload_library();
+        studio
+    }
+
+    pub fn reload_library(&mut self) {
+        let problems = self.library.reload(&*self.files);
+        if !problems.is_empty() {
+            self.error(problems.join("\n"));
+        }
+    }
+
+    pub fn restore(&mut self, saved: Persisted) {
+        if let Some(spec) = saved.design {
+            self.design = Some(Design::restore(spec, saved.path, saved.saved));
+        }
+        if let Some(panel) = saved.panel {
+            self.panel = panel;
+        }
+        self.print.settings = saved.print;
+    }
+
+    pub fn persisted(&self) -> Persisted {
+        Persisted {
+            panel: Some(self.panel),
+            design: self.design.as_ref().map(|d| d.spec().clone()),
+            saved: self.design.as_ref().and_then(|d| d.saved_spec().cloned()),
+            path: self.design.as_ref().and_then(|d| d.path.clone()),
+            print: self.print.settings.clone(),
+        }
+    }
+
+    pub fn info(&mut self, text: impl Into<String>) {
+        self.notice = Some(Notice::Info(text.into()));
+    }
+
+    pub fn error(&mut self, text: impl Into<String>) {
+        self.notice = Some(Notice::Error(text.into()));
+    }
+
+    pub fn is_dirty(&self) -> bool {
+        self.design.as_ref().is_some_and(Design::is_dirty)
+    }
+
+    /// Makes `spec` the design, asking first when that would drop unsaved changes.
+    pub fn start_design(&mut self, spec: FamilySpec, path: Option<PathBuf>, saved: bool) {
+        if self.is_dirty() {
+            self.pending_replace = Some(PendingReplace { spec, path, saved });
+            return;
+        }
+        self.replace_design(spec, path, saved);
+    }
+
+    fn replace_design(&mut self, spec: FamilySpec, path: Option<PathBuf>, saved: bool) {
+        self.designer = designer::DesignerState::default();
+        self.design = Some(Design::new(spec, path, saved));
+        self.panel = Panel::Designer;
+    }
+
+    /// A family file opened or dropped: listed in the library and, when that loses nothing,
+    /// opened in the designer. A file that does not parse changes nothing and says why.
+    pub fn open_file(&mut self, file: OpenedFile) {
+        match self.library.add_opened(&file) {
+            Ok(spec) => {
+                let name = spec.name.clone();
+                if self.is_dirty() {
+                    self.info(format!(
+                        "opened {name} from {}; it is in the families list (the current design \
+                         has unsaved changes)",
+                        file.name
+                    ));
+                } else {
+                    self.replace_design(spec, file.path.clone(), true);
+                    self.info(format!("opened {name} from {}", file.name));
+                }
+            }
+            Err(e) => self.error(e),
+        }
+    }
+
+    /// Saves the design where it lives, or asks where (first save, built-in duplicates).
+    pub fn save(&mut self) {
+        let Some(design) = &self.design else {
+            return;
+        };
+        let json = tagsmith::family::to_json_string(design.spec());
+        let target = design.path.clone().or_else(|| {
+            self.files
+                .user_folder()
+                .map(|dir| dir.join(design.file_name()))
+        });
+        let result = match &target {
+            Some(path) => self.files.save_to(path, json.as_bytes()).map(Some),
+            None => self.files.save_as(&design.file_name(), json.as_bytes()),
+        };
+        self.finish_save(result, target);
+    }
+
+    pub fn save_as(&mut self) {
+        let Some(design) = &self.design else {
+            return;
+        };
+        let json = tagsmith::family::to_json_string(design.spec());
+        let result = self.files.save_as(&design.file_name(), json.as_bytes());
+        // A dialog may rename the file; on the desktop the returned location is its path.
+        let path = match &result {
+            Ok(Some(place)) if !cfg!(target_arch = "wasm32") => Some(PathBuf::from(place)),
+            _ => None,
+        };
+        self.finish_save(result, path);
+    }
+
+    fn finish_save(&mut self, result: Result<Option<String>, String>, path: Option<PathBuf>) {
+        match result {
+            Ok(Some(place)) => {
+                let design = self.design.as_mut().expect("saving a design");
+                let problems = design.validation().as_ref().err().map(|e| e.problems.len());
+                design.mark_saved(path);
+                let warning = match problems {
+                    Some(n) => format!(" — it has {n} validation problem(s) still to fix"),
+                    None => String::new(),
+                };
+                self.info(format!("saved {place}{warning}"));
+                self.reload_library();
+            }
+            Ok(None) => {}
+            Err(e) => self.error(format!("not saved: {e}")),
+        }
+    }
+
+    pub fn undo(&mut self) {
+        if let Some(d) = &mut self.design {
+            if !d.undo() {
+                self.info("nothing to undo");
+            }
+        }
+    }
+
+    pub fn redo(&mut self) {
+        if let Some(d) = &mut self.design {
+            if !d.redo() {
+                self.info("nothing to redo");
+            }
+        }
+    }
+
+    fn shortcuts(&mut self, ctx: &egui::Context) {
+        let save = KeyboardShortcut::new(Modifiers::COMMAND, Key::S);
+        let undo = KeyboardShortcut::new(Modifiers::COMMAND, Key::Z);
+        let redo = KeyboardShortcut::new(Modifiers::COMMAND | Modifiers::SHIFT, Key::Z);
+        let redo_y = KeyboardShortcut::new(Modifiers::COMMAND, Key::Y);
+        if ctx.input_mut(|i| i.consume_shortcut(&save)) {
+            self.save();
+        }
+        // A focused text field keeps its own undo.
+        if ctx.egui_wants_keyboard_input() {
+            return;
+        }
+        // Redo first: Ctrl+Shift+Z also matches Ctrl+Z's logical shortcut.
+        if ctx.input_mut(|i| i.consume_shortcut(&redo) || i.consume_shortcut(&redo_y)) {
+            self.redo();
+        } else if ctx.input_mut(|i| i.consume_shortcut(&undo)) {
+            self.undo();
+        }
+    }
+
+    fn take_dropped_and_opened(&mut self, ctx: &egui::Context) {
+        let dropped = ctx.input_mut(|i| std::mem::take(&mut i.raw.dropped_files));
+        for file in dropped {
+            if let Err(e) = self.files.accept_dropped(file) {
+                self.error(e);
+            }
+        }
+        for file in self.files.take_opened() {
+            match file.purpose {
+                Purpose::Family => self.open_file(file),
+                Purpose::CodeTable => designer::import_table(self, &file.name, &file.bytes),
+            }
+        }
+    }
+
+    /// The whole window.
+    pub fn ui(&mut self, ui: &mut egui::Ui) {
+        let ctx = ui.ctx().clone();
+        self.take_dropped_and_opened(&ctx);
+        self.shortcuts(&ctx);
+        self.handle_close_request(&ctx);
+
+        egui::Panel::top("studio-top").show(ui, |ui| self.top_bar(ui));
+        egui::Panel::bottom("studio-notice").show(ui, |ui| self.notice_bar(ui));
+        egui::CentralPanel::default_margins().show(ui, |ui| match self.panel {
+            Panel::Families => families::show(self, ui),
+            Panel::Designer => designer::show(self, ui, &ctx),
+            Panel::Print => print::show(self, ui, &ctx),
+        });
+        self.confirm_replace(&ctx);
+        self.confirm_quit(&ctx);
+    }
+
+    fn top_bar(&mut self, ui: &mut egui::Ui) {
+        ui.horizontal(|ui| {
+            ui.heading("Tagsmith");
+            ui.separator();
+            ui.selectable_value(&mut self.panel, Panel::Families, "Families");
+            ui.selectable_value(&mut self.panel, Panel::Designer, "Designer");
+            ui.selectable_value(&mut self.panel, Panel::Print, "Print");
+            ui.separator();
+            if ui.button("Open family file…").clicked() {
+                self.files.request_open(Purpose::Family);
+            }
+            let has_design = self.design.is_some();
+            if ui
+                .add_enabled(has_design, egui::Button::new("Save"))
+                .on_hover_text("Ctrl+S")
+                .clicked()
+            {
+                self.save();
+            }
+            if ui
+                .add_enabled(has_design, egui::Button::new("Save as…"))
+                .clicked()
+            {
+                self.save_as();
+            }
+            let (undo, redo) = self
+                .design
+                .as_ref()
+                .map_or((0, 0), |d| (d.undo_steps(), d.redo_steps()));
+            if ui
+                .add_enabled(undo > 0, egui::Button::new("Undo"))
+                .on_hover_text(format!("Ctrl+Z ({undo} step(s))"))
+                .clicked()
+            {
+                self.undo();
+            }
+            if ui
+                .add_enabled(redo > 0, egui::Button::new("Redo"))
+                .on_hover_text(format!("Ctrl+Shift+Z ({redo} step(s))"))
+                .clicked()
+            {
+                self.redo();
+            }
+            if let Some(d) = &self.design {
+                ui.separator();
+                let name = &d.spec().name;
+                if d.is_dirty() {
+                    ui.label(egui::RichText::new(format!("{name} ● unsaved")).strong())
+                        .on_hover_text("this design has changes that are not saved to a file");
+                } else {
+                    ui.label(name.as_str());
+                }
+            }
+        });
+    }
+
+    fn notice_bar(&mut self, ui: &mut egui::Ui) {
+        ui.horizontal_wrapped(|ui| match &self.notice {
+            Some(Notice::Error(text)) => {
+                ui.colored_label(ui.visuals().error_fg_color, format!("error: {text}"));
+            }
+            Some(Notice::Info(text)) => {
+                ui.label(text.as_str());
+            }
+            None => {
+                ui.weak("Drop a family file (.json) on the window to open it.");
+            }
+        });
+    }
+
+    fn confirm_replace(&mut self, ctx: &egui::Context) {
+        let Some(pending) = &self.pending_replace else {
+            return;
+        };
+        let name = self
+            .design
+            .as_ref()
+            .map(|d| d.spec().name.clone())
+            .unwrap_or_default();
+        let next = pending.spec.name.clone();
+        let mut choice = None;
+        egui::Modal::new(egui::Id::unique("replace-design")).show(ctx, |ui| {
+            ui.heading("Unsaved changes");
+            ui.label(format!(
+                "{name} has unsaved changes. Open {next} and discard them?"
+            ));
+            ui.horizontal(|ui| {
+                if ui.button("Save, then open").clicked() {
+                    choice = Some(1);
+                }
+                if ui.button("Discard changes and open").clicked() {
+                    choice = Some(2);
+                }
+                if ui.button("Cancel").clicked() {
+                    choice = Some(0);
+                }
+            });
+        });
+        match choice {
+            Some(1) => {
+                self.save();
+                if !self.is_dirty() {
+                    let p = self.pending_replace.take().expect("pending");
+                    self.replace_design(p.spec, p.path, p.saved);
+                }
+            }
+            Some(2) => {
+                let p = self.pending_replace.take().expect("pending");
+                self.replace_design(p.spec, p.path, p.saved);
+            }
+            Some(_) => self.pending_replace = None,
+            None => {}
+        }
+    }
+
+    fn handle_close_request(&mut self, ctx: &egui::Context) {
+        if ctx.input(|i| i.viewport().close_requested()) && self.is_dirty() && !self.quit_confirmed
+        {
+            ctx.send_viewport_cmd(egui::ViewportCommand::CancelClose);
+            self.quit_prompt = true;
+        }
+    }
+
+    fn confirm_quit(&mut self, ctx: &egui::Context) {
+        if !self.quit_prompt {
+            return;
+        }
+        let mut choice = None;
+        egui::Modal::new(egui::Id::unique("quit")).show(ctx, |ui| {
+            ui.heading("Quit with unsaved changes?");
+            ui.label(
+                "The design is also kept for the next start, but it is not in a family file yet.",
+            );
+            ui.horizontal(|ui| {
+                if ui.button("Save and quit").clicked() {
+                    choice = Some(1);
+                }
+                if ui.button("Quit without saving").clicked() {
+                    choice = Some(2);
+                }
+                if ui.button("Keep editing").clicked() {
+                    choice = Some(0);
+                }
+            });
+        });
+        match choice {
+            Some(1) => {
+                self.save();
+                if !self.is_dirty() {
+                    self.quit(ctx);
+                }
+            }
+            Some(2) => self.quit(ctx),
+            Some(_) => self.quit_prompt = false,
+            None => {}
+        }
+    }
+
+    fn quit(&mut self, ctx: &egui::Context) {
+        self.quit_prompt = false;
+        self.quit_confirmed = true;
+        ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+    }
+}
+
+/// The eframe application around [`Studio`], with persistence.
+pub struct StudioApp {
+    pub studio: Studio,
+}
+
+impl StudioApp {
+    pub fn new(cc: &eframe::CreationContext<'_>, files: Box<dyn FileAccess>) -> Self {
+        let mut studio = Studio::new(files);
+        if let Some(saved) = cc
+            .storage
+            .and_then(|s| eframe::get_value::<Persisted>(s, eframe::APP_KEY))
+        {
+            studio.restore(saved);
+        }
+        Self { studio }
+    }
+}
+
+impl eframe::App for StudioApp {
+    fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
+        self.studio.ui(ui);
+    }
+
+    fn save(&mut self, storage: &mut dyn eframe::Storage) {
+        eframe::set_value(storage, eframe::APP_KEY, &self.studio.persisted());
+    }
+
+    /// Unsaved designs are written to storage often, so a crash loses little.
+    fn auto_save_interval(&self) -> std::time::Duration {
+        std::time::Duration::from_secs(5)
+    }
+}

@@ -1,0 +1,1 @@
+//! Studio GUI tests (egui_kittest).
