@@ -1,1 +1,319 @@
-//! Studio GUI tests (egui_kittest).
+//! The studio driven through its real UI (egui_kittest): widgets are found by their labels and
+//! clicked or given values, as a user (or a screen reader) would.
+
+use egui_kittest::kittest::Queryable;
+use egui_kittest::Harness;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+use tagsmith::family::spec::{Layout, Shape};
+use tagsmith_studio::studio::files::FolderFiles;
+use tagsmith_studio::studio::{Notice, Panel, Studio};
+
+struct Setup {
+    _dir: tempfile::TempDir,
+    out: PathBuf,
+    user: PathBuf,
+}
+
+fn setup() -> Setup {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("exports");
+    let user = dir.path().join("families");
+    Setup {
+        out,
+        user,
+        _dir: dir,
+    }
+}
+
+fn studio(s: &Setup) -> Harness<'static, Studio> {
+    let mut files = FolderFiles::new(&s.out);
+    files.user_folder = Some(s.user.clone());
+    let studio = Studio::new(Box::new(files));
+    let mut h = Harness::builder()
+        .with_size(egui::vec2(1400.0, 1400.0))
+        .with_max_steps(50)
+        .build_ui_state(|ui, s: &mut Studio| s.ui(ui), studio);
+    h.run();
+    h
+}
+
+/// Frames until `done` holds (background work such as codebook generation).
+fn run_until(h: &mut Harness<'static, Studio>, what: &str, done: impl Fn(&Studio) -> bool) {
+    let start = Instant::now();
+    while !done(h.state()) {
+        assert!(
+            start.elapsed() < Duration::from_secs(120),
+            "timed out: {what}"
+        );
+        h.step();
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    h.run();
+}
+
+fn spec(h: &Harness<'static, Studio>) -> tagsmith::family::FamilySpec {
+    h.state().design.as_ref().expect("a design").spec().clone()
+}
+
+fn grid(h: &Harness<'static, Studio>) -> tagsmith::family::spec::GridLayout {
+    match spec(h).layout {
+        Layout::Grid(g) => g,
+        Layout::Rings(_) => panic!("expected a grid"),
+    }
+}
+
+fn pdf_pages(path: &Path) -> usize {
+    let bytes = std::fs::read(path).unwrap();
+    assert!(
+        bytes.starts_with(b"%PDF-"),
+        "{} is not a PDF",
+        path.display()
+    );
+    let text = String::from_utf8_lossy(&bytes);
+    text.matches("/Type /Page").count() - text.matches("/Type /Pages").count()
+}
+
+fn error_text(h: &Harness<'static, Studio>) -> String {
+    match &h.state().notice {
+        Some(Notice::Error(e)) => e.clone(),
+        other => panic!("expected an error message, got {other:?}"),
+    }
+}
+
+/// The scenario: a new family from a built-in, a smaller grid, a cross-shaped category
+/// painted into the grid, a generated codebook, saved, printed to PDF.
+#[test]
+fn design_a_family_from_a_builtin_and_print_it() {
+    let s = setup();
+    let mut h = studio(&s);
+
+    h.get_by_label("apriltag-36h11").click();
+    h.run();
+    h.get_by_label("Duplicate as new design").click();
+    h.run();
+    assert_eq!(h.state().panel, Panel::Designer);
+    assert_eq!(spec(&h).name, "apriltag-36h11-copy");
+    assert!(h.query_by_label_contains("(unsaved)").is_some());
+
+    let size_before = grid(&h).size;
+    h.get_by_label("Grid size").set_value_accesskit(7.0);
+    h.run();
+    assert_eq!(grid(&h).size, 7);
+    assert_ne!(size_before, 7);
+
+    // Undo and redo, by keyboard.
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.run();
+    assert_eq!(grid(&h).size, size_before, "Ctrl+Z undoes the grid change");
+    h.key_press_modifiers(
+        egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
+        egui::Key::Z,
+    );
+    h.run();
+    assert_eq!(grid(&h).size, 7, "Ctrl+Shift+Z redoes it");
+
+    h.get_by_label("New category name").click();
+    h.run();
+    h.get_by_label("New category name").type_text("cross");
+    h.run();
+    h.get_by_label("Add category").click();
+    h.run();
+    assert!(
+        spec(&h).categories.iter().any(|c| c.name == "cross"),
+        "{:?} {:?}",
+        h.state().notice,
+        h.state().designer.refused
+    );
+    h.get_by_label("+ cross").click();
+    h.run();
+    let cross = spec(&h)
+        .categories
+        .into_iter()
+        .find(|c| c.name == "cross")
+        .expect("the new category");
+    assert!(matches!(cross.primitives[..], [ref p] if matches!(p.shape, Shape::Cross { .. })));
+
+    // Assign it: paint the centre cell of the 7×7 grid with it.
+    h.get_by_label("Paint cells").click();
+    h.run();
+    h.get_by_label("Paint: cross").click();
+    h.run();
+    h.get_by_label("marker preview").click();
+    h.run();
+    let g = grid(&h);
+    let key = g
+        .legend
+        .iter()
+        .find(|(_, v)| *v == "cross")
+        .map(|(k, _)| k.chars().next().unwrap())
+        .expect("the cross category is in the legend");
+    assert_eq!(g.cells[3].chars().nth(3), Some(key), "{:?}", g.cells);
+
+    h.get_by_label("Minimum distance").set_value_accesskit(5.0);
+    h.get_by_label("Codes wanted").set_value_accesskit(30.0);
+    h.run();
+    h.get_by_label("Generate codebook").click();
+    h.run();
+    run_until(&mut h, "codebook generation", |s| s.designer.job.is_none());
+    let cb = spec(&h).codebook;
+    assert_eq!(cb.codes.len(), 30, "{:?}", h.state().notice);
+    assert!(cb.min_distance.unwrap() >= 5);
+    assert!(h.state().design.as_ref().unwrap().validation().is_ok());
+
+    h.get_by_label("Save").click();
+    h.run();
+    let saved = s.user.join("apriltag-36h11-copy.json");
+    let family = tagsmith::family::load_file(&saved).expect("the saved family validates");
+    assert_eq!(family.code_len(), 24, "7×7 with a frame and one cross cell");
+    assert!(h.query_by_label_contains("(unsaved)").is_none());
+    assert!(
+        h.get_all_by_label("apriltag-36h11-copy").count() >= 1,
+        "the saved design is listed among the user's families"
+    );
+
+    h.get_by_label("Print").click();
+    h.run();
+    h.get_by_label("IDs").set_text_value_accesskit("0-29");
+    h.get_by_label("Marker side (mm)").set_value_accesskit(60.0);
+    h.run();
+    h.get_by_label("Export PDF…").click();
+    h.run();
+    let pdf = s.out.join("apriltag-36h11-copy-sheet.pdf");
+    let mut params = h.state().print.settings.params(&family).unwrap();
+    params.marker_side_mm = 60.0;
+    let expected = tagsmith::render::sheet::layout_sheet(&family, &params)
+        .unwrap()
+        .pages
+        .len();
+    assert!(expected >= 2, "30 markers of 60 mm take several A4 pages");
+    assert_eq!(pdf_pages(&pdf), expected);
+}
+
+#[derive(Debug)]
+struct Dropped {
+    path: PathBuf,
+    bytes: Vec<u8>,
+}
+
+impl egui::DroppedFile for Dropped {
+    fn path(&self) -> &Path {
+        &self.path
+    }
+    fn bytes(&self) -> Result<Vec<u8>, String> {
+        Ok(self.bytes.clone())
+    }
+}
+
+#[test]
+fn a_malformed_family_dropped_on_the_window_is_refused_by_file_and_field() {
+    let s = setup();
+    let mut h = studio(&s);
+    h.get_by_label("aruco-4x4_50").click();
+    h.run();
+    h.get_by_label("Duplicate as new design").click();
+    h.run();
+    let before = spec(&h);
+    let listed = h.state().library.entries.len();
+
+    let mut json: serde_json::Value =
+        serde_json::from_str(&tagsmith::family::to_json_string(&before)).unwrap();
+    json["layout"]["size"] = serde_json::json!(40);
+    let path = PathBuf::from("/tmp/broken-family.json");
+    h.input_mut().dropped_files.push(Arc::new(Dropped {
+        path: path.clone(),
+        bytes: serde_json::to_vec(&json).unwrap(),
+    }));
+    h.run();
+    let e = error_text(&h);
+    assert!(
+        e.contains("broken-family.json") && e.contains("layout"),
+        "{e}"
+    );
+    assert_eq!(spec(&h), before, "the design is untouched");
+    assert_eq!(
+        h.state().library.entries.len(),
+        listed,
+        "nothing was listed"
+    );
+
+    h.input_mut().dropped_files.push(Arc::new(Dropped {
+        path: PathBuf::from("/tmp/not-json.json"),
+        bytes: b"\xff\xfe garbage".to_vec(),
+    }));
+    h.run();
+    assert!(error_text(&h).contains("not-json.json"));
+    assert_eq!(spec(&h), before);
+
+    // A valid family dropped while the design has unsaved changes is listed, not swapped in.
+    let good = tagsmith::builtin::get("apriltag-16h5").unwrap().unwrap();
+    h.input_mut().dropped_files.push(Arc::new(Dropped {
+        path: PathBuf::from("/tmp/mine.json"),
+        bytes: tagsmith::family::to_json_string(good.spec()).into_bytes(),
+    }));
+    h.run();
+    assert_eq!(spec(&h), before, "unsaved work is not replaced");
+    assert_eq!(h.state().library.entries.len(), listed + 1);
+}
+
+#[test]
+fn impossible_print_setups_say_why_and_export_nothing() {
+    let s = setup();
+    let mut h = studio(&s);
+    h.get_by_label("apriltag-36h11").click();
+    h.run();
+    h.get_by_label("Duplicate as new design").click();
+    h.run();
+    h.get_by_label("Print").click();
+    h.run();
+
+    h.get_by_label("IDs").set_text_value_accesskit("0-5000");
+    h.run();
+    assert!(
+        h.query_by_label_contains("does not exist").is_some(),
+        "the out-of-range ID is explained"
+    );
+    h.get_by_label("Export PDF…").click();
+    h.run();
+
+    h.get_by_label("IDs").set_text_value_accesskit("0-3");
+    h.get_by_label("Marker side (mm)")
+        .set_value_accesskit(500.0);
+    h.run();
+    assert!(
+        h.query_by_label_contains("fit").is_some(),
+        "a marker larger than the page is explained"
+    );
+    h.get_by_label("Export SVG…").click();
+    h.run();
+    assert!(!s.out.exists(), "nothing was written");
+
+    h.get_by_label("Marker side (mm)").set_value_accesskit(30.0);
+    h.run();
+    h.get_by_label("Export SVG…").click();
+    h.run();
+    assert!(s.out.join("apriltag-36h11-copy-sheet.svg").exists());
+}
+
+#[test]
+fn a_design_survives_a_restart_with_its_unsaved_marker() {
+    let s = setup();
+    let mut h = studio(&s);
+    h.get_by_label("aruco-5x5_100").click();
+    h.run();
+    h.get_by_label("Duplicate as new design").click();
+    h.run();
+    h.get_by_label("Quiet zone (cells)")
+        .set_value_accesskit(2.0);
+    h.run();
+    let kept = h.state().persisted();
+    let edited = spec(&h);
+
+    let mut files = FolderFiles::new(&s.out);
+    files.user_folder = Some(s.user.clone());
+    let mut again = Studio::new(Box::new(files));
+    again.restore(serde_json::from_str(&serde_json::to_string(&kept).unwrap()).unwrap());
+    assert_eq!(again.design.as_ref().unwrap().spec(), &edited);
+    assert!(again.is_dirty(), "still marked unsaved after the restart");
+}

@@ -90,11 +90,11 @@ fn messages(ui: &mut Ui, studio: &Studio, section: &'static str, paths: &[&str])
     };
     let colour = ui.visuals().error_fg_color;
     for p in design.problems_at(paths) {
-        ui.colored_label(colour, format!("⚠ {p}"));
+        ui.colored_label(colour, format!("{p}"));
     }
     if let Some((s, text)) = &studio.designer.refused {
         if *s == section {
-            ui.colored_label(colour, format!("⚠ {text}"));
+            ui.colored_label(colour, format!("{text}"));
         }
     }
 }
@@ -164,7 +164,7 @@ fn controls(studio: &mut Studio, ui: &mut Ui) {
         ui.separator();
     }
     for p in other {
-        ui.colored_label(ui.visuals().error_fg_color, format!("⚠ {p}"));
+        ui.colored_label(ui.visuals().error_fg_color, format!("{p}"));
     }
     if let Ok(f) = design.validation() {
         for w in f.warnings() {
@@ -184,8 +184,12 @@ fn identity(studio: &mut Studio, ui: &mut Ui) {
         edit_dragged(studio, "identity", "title", Edit::SetTitle(title));
     }
     let mut description = spec.description.clone();
-    ui.label("Description");
-    if ui.text_edit_multiline(&mut description).changed() {
+    let l = ui.label("Description");
+    if ui
+        .text_edit_multiline(&mut description)
+        .labelled_by(l.id)
+        .changed()
+    {
         edit_dragged(
             studio,
             "identity",
@@ -420,7 +424,7 @@ fn categories(studio: &mut Studio, ui: &mut Ui) {
                 Role::Symbol(k) => format!("symbol {k}"),
                 Role::Fixed => "fixed".into(),
             };
-            let text = egui::RichText::new(format!("● {}", c.name)).color(category_colour(i));
+            let text = egui::RichText::new(&c.name).color(category_colour(i));
             if ui
                 .selectable_label(selected, text)
                 .on_hover_text(role)
@@ -460,6 +464,8 @@ fn categories(studio: &mut Studio, ui: &mut Ui) {
         messages(ui, studio, "categories", &["categories"]);
         return;
     };
+    // Read again: an add or rename above has changed the spec this frame.
+    let spec = studio.design.as_ref().expect("a design").spec().clone();
     let Some(index) = spec.categories.iter().position(|c| c.name == selected) else {
         studio.designer.selected_category = None;
         return;
@@ -721,8 +727,7 @@ fn primitive_editor(ui: &mut Ui, p: &mut Primitive) -> bool {
             changed |= num(ui, "y", y, -2.0, 2.0);
         }
         Shape::Path { d } => {
-            ui.label("SVG path (cell units)");
-            changed |= ui.text_edit_singleline(d).changed();
+            changed |= text_field(ui, "SVG path (cell units)", d).changed();
         }
     }
     changed |= colour_option(ui, "fill", &mut p.fill, "#000000");
@@ -817,7 +822,7 @@ fn roi(studio: &mut Studio, ui: &mut Ui) {
             .iter()
             .map(|p| format!("({:.2}, {:.2})", p[0], p[1]))
             .collect::<Vec<_>>()
-            .join(" → ")
+            .join(" -> ")
     ));
     let mut margin = spec.roi.margin;
     if number(ui, "Template margin a", &mut margin, 0.0..=0.45, 0.005).changed() {
@@ -834,7 +839,7 @@ fn roi(studio: &mut Studio, ui: &mut Ui) {
         if draft.len() >= 4 {
             if let Err(e) = Family::from_spec(trial) {
                 for p in e.problems.iter().filter(|p| p.path.starts_with("roi")) {
-                    ui.colored_label(ui.visuals().warn_fg_color, format!("⚠ {}", p.message));
+                    ui.colored_label(ui.visuals().warn_fg_color, format!("{}", p.message));
                 }
             }
         }
@@ -1116,7 +1121,7 @@ fn marker_view(
     };
     let size = preview::fit(scene.width_mm, scene.height_mm, egui::vec2(side, side));
     let (rect, response) = ui.allocate_exact_size(size, Sense::click());
-    let response = response.on_hover_text("marker preview");
+    response.widget_info(|| egui::WidgetInfo::labeled(egui::Role::Image, true, "marker preview"));
     let tex = studio
         .textures
         .get_or_make(ctx, "marker", revision * 100_000 + id as u64, || {

@@ -323,7 +323,7 @@ impl Studio {
                 ui.separator();
                 let name = &d.spec().name;
                 if d.is_dirty() {
-                    ui.label(egui::RichText::new(format!("{name} ● unsaved")).strong())
+                    ui.label(egui::RichText::new(format!("{name} (unsaved)")).strong())
                         .on_hover_text("this design has changes that are not saved to a file");
                 } else {
                     ui.label(name.as_str());

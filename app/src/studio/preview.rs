@@ -103,13 +103,20 @@ pub fn fit(scene_w: f64, scene_h: f64, available: Vec2) -> Vec2 {
 /// Draws numbered points joined by arrows in order (and back to the first): the ROI.
 pub fn draw_ordered_points(painter: &egui::Painter, points: &[Pos2], colour: Color32) {
     let n = points.len();
+    let stroke = Stroke::new(2.0, colour);
     for i in 0..n {
-        let (a, b) = (points[i], points[(i + 1) % n]);
-        if n > 1 && (i + 1 < n || n >= 3) {
-            let dir = b - a;
-            let shrink = dir.normalized() * 7.0;
-            painter.arrow(a + shrink, dir - shrink * 2.0, Stroke::new(2.0, colour));
+        // Two points are one arrow; three or more close the loop back to the first.
+        if n < 2 || (n == 2 && i == 1) {
+            break;
         }
+        let (a, b) = (points[i], points[(i + 1) % n]);
+        let along = (b - a).normalized();
+        let (from, to) = (a + along * 9.0, b - along * 9.0);
+        painter.line_segment([from, to], stroke);
+        let side = along.rot90() * 4.0;
+        let head = to - along * 9.0;
+        painter.line_segment([to, head + side], stroke);
+        painter.line_segment([to, head - side], stroke);
     }
     for (i, &p) in points.iter().enumerate() {
         painter.circle(p, 7.0, colour, Stroke::new(1.0, Color32::WHITE));

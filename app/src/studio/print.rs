@@ -178,7 +178,7 @@ fn controls(studio: &mut Studio, ui: &mut Ui, family: &Family, revision: u64) {
             }
         }
         Err(e) => {
-            ui.colored_label(ui.visuals().error_fg_color, format!("⚠ {e}"));
+            ui.colored_label(ui.visuals().error_fg_color, format!("{e}"));
         }
     }
     ui.horizontal(|ui| {
@@ -267,14 +267,14 @@ fn page_preview(
     let page = studio.print.preview_page.min(pages - 1);
     ui.horizontal(|ui| {
         if ui
-            .add_enabled(page > 0, egui::Button::new("◀ Previous page"))
+            .add_enabled(page > 0, egui::Button::new("< Previous page"))
             .clicked()
         {
             studio.print.preview_page = page - 1;
         }
         ui.label(format!("page {} of {pages}", page + 1));
         if ui
-            .add_enabled(page + 1 < pages, egui::Button::new("Next page ▶"))
+            .add_enabled(page + 1 < pages, egui::Button::new("Next page >"))
             .clicked()
         {
             studio.print.preview_page = page + 1;
