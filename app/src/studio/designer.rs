@@ -90,11 +90,11 @@ fn messages(ui: &mut Ui, studio: &Studio, section: &'static str, paths: &[&str])
     };
     let colour = ui.visuals().error_fg_color;
     for p in design.problems_at(paths) {
-        ui.colored_label(colour, format!("{p}"));
+        ui.colored_label(colour, p.as_str());
     }
     if let Some((s, text)) = &studio.designer.refused {
         if *s == section {
-            ui.colored_label(colour, format!("{text}"));
+            ui.colored_label(colour, text.as_str());
         }
     }
 }
@@ -164,7 +164,7 @@ fn controls(studio: &mut Studio, ui: &mut Ui) {
         ui.separator();
     }
     for p in other {
-        ui.colored_label(ui.visuals().error_fg_color, format!("{p}"));
+        ui.colored_label(ui.visuals().error_fg_color, p.as_str());
     }
     if let Ok(f) = design.validation() {
         for w in f.warnings() {
@@ -839,7 +839,7 @@ fn roi(studio: &mut Studio, ui: &mut Ui) {
         if draft.len() >= 4 {
             if let Err(e) = Family::from_spec(trial) {
                 for p in e.problems.iter().filter(|p| p.path.starts_with("roi")) {
-                    ui.colored_label(ui.visuals().warn_fg_color, format!("{}", p.message));
+                    ui.colored_label(ui.visuals().warn_fg_color, p.message.as_str());
                 }
             }
         }

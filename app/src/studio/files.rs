@@ -83,6 +83,7 @@ pub fn user_families(files: &dyn FileAccess) -> Vec<OpenedFile> {
         .collect()
 }
 
+#[cfg(not(target_arch = "wasm32"))]
 fn write(path: &Path, bytes: &[u8]) -> Result<String, String> {
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
@@ -94,6 +95,7 @@ fn write(path: &Path, bytes: &[u8]) -> Result<String, String> {
 /// Files in one folder, no dialogs: `save_as` writes there under the suggested name and
 /// `request_open` takes the next queued path. Tests drive the studio through this; it is also
 /// what a headless or scripted session would use.
+#[cfg(not(target_arch = "wasm32"))]
 pub struct FolderFiles {
     pub folder: PathBuf,
     pub user_folder: Option<PathBuf>,
@@ -101,6 +103,7 @@ pub struct FolderFiles {
     opened: Vec<OpenedFile>,
 }
 
+#[cfg(not(target_arch = "wasm32"))]
 impl FolderFiles {
     pub fn new(folder: impl Into<PathBuf>) -> Self {
         Self {
@@ -112,6 +115,7 @@ impl FolderFiles {
     }
 }
 
+#[cfg(not(target_arch = "wasm32"))]
 impl FileAccess for FolderFiles {
     fn save_as(&mut self, suggested_name: &str, bytes: &[u8]) -> Result<Option<String>, String> {
         write(&self.folder.join(suggested_name), bytes).map(Some)

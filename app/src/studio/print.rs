@@ -178,7 +178,7 @@ fn controls(studio: &mut Studio, ui: &mut Ui, family: &Family, revision: u64) {
             }
         }
         Err(e) => {
-            ui.colored_label(ui.visuals().error_fg_color, format!("{e}"));
+            ui.colored_label(ui.visuals().error_fg_color, e.as_str());
         }
     }
     ui.horizontal(|ui| {
