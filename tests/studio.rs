@@ -32,7 +32,8 @@ fn studio(s: &Setup) -> Harness<'static, Studio> {
     files.user_folder = Some(s.user.clone());
     let studio = Studio::new(Box::new(files));
     let mut h = Harness::builder()
-        .with_size(egui::vec2(1400.0, 1400.0))
+        // Tall enough that every designer section is on screen without scrolling.
+        .with_size(egui::vec2(1400.0, 2400.0))
         .with_max_steps(50)
         .build_ui_state(|ui, s: &mut Studio| s.ui(ui), studio);
     h.run();
@@ -157,6 +158,11 @@ fn design_a_family_from_a_builtin_and_print_it() {
     h.get_by_label("Generate codebook").click();
     h.run();
     run_until(&mut h, "codebook generation", |s| s.designer.job.is_none());
+    assert!(
+        matches!(&h.state().notice, Some(Notice::Info(t)) if t.starts_with("generated 30 codes")),
+        "{:?}",
+        h.state().notice
+    );
     let cb = spec(&h).codebook;
     assert_eq!(cb.codes.len(), 30, "{:?}", h.state().notice);
     assert!(cb.min_distance.unwrap() >= 5);

@@ -159,7 +159,7 @@ fn controls(studio: &mut Studio, ui: &mut Ui) {
         .default_open(true)
         .show(ui, |ui| codebook(studio, ui));
     let design = studio.design.as_ref().expect("a design");
-    let other: Vec<String> = design.problems_at(&["format", "extra", "print", "background"]);
+    let other: Vec<String> = design.problems_at(&["format", "extra"]);
     if !other.is_empty() || design.validation().is_ok() {
         ui.separator();
     }
@@ -197,6 +197,21 @@ fn identity(studio: &mut Studio, ui: &mut Ui) {
             Edit::SetDescription(description),
         );
     }
+    let mut source = spec.source.clone();
+    if text_field(ui, "Source", &mut source).changed() {
+        edit_dragged(studio, "identity", "source", Edit::SetSource(source));
+    }
+    let mut side = spec.print.marker_side_mm;
+    if number(ui, "Print size (mm)", &mut side, 1.0..=2000.0, 0.2).changed() {
+        edit_dragged(studio, "identity", "side", Edit::SetMarkerSide(side));
+    }
+    let mut labels = spec.print.labels;
+    if ui
+        .checkbox(&mut labels, "Print labels by default")
+        .changed()
+    {
+        edit(studio, "identity", Edit::SetPrintLabels(labels));
+    }
     ui.horizontal(|ui| {
         ui.label("Background");
         let mut rgb = parse_hex(&spec.background).unwrap_or([255, 255, 255]);
@@ -209,7 +224,12 @@ fn identity(studio: &mut Studio, ui: &mut Ui) {
             );
         }
     });
-    messages(ui, studio, "identity", &["name", "title", "background"]);
+    messages(
+        ui,
+        studio,
+        "identity",
+        &["name", "title", "source", "background", "print"],
+    );
 }
 
 fn parse_hex(text: &str) -> Option<[u8; 3]> {
@@ -896,6 +916,12 @@ fn codebook(studio: &mut Studio, ui: &mut Ui) {
                 f.codebook().max_correction()
             ));
             ui.weak(&spec.codebook.source);
+            let mut correct = f.codebook().max_correction() as u32;
+            if number(ui, "Correct up to (errors)", &mut correct, 0..=32, 0.05).changed() {
+                let mut cb = spec.codebook.clone();
+                cb.max_correction = Some(correct);
+                edit_dragged(studio, "codebook", "correction", Edit::SetCodebook(cb));
+            }
             let last = f.codebook().len().saturating_sub(1);
             studio.designer.preview_id = studio.designer.preview_id.min(last);
             ui.horizontal(|ui| {

@@ -46,6 +46,8 @@ pub enum Edit {
     },
     SetQuietZone(f64),
     SetDescription(String),
+    /// Where the design comes from (credits, licences of imported tables).
+    SetSource(String),
     /// Page colour around and between the keypoints, as `#rrggbb`.
     SetBackground(String),
     AddCategory {
@@ -108,6 +110,7 @@ pub fn apply(spec: &FamilySpec, edit: &Edit) -> Result<FamilySpec, EditError> {
             start_angle_deg,
         } => set_rings(&mut s, radii, *slots, *dot_radius_ratio, *start_angle_deg)?,
         Edit::SetDescription(d) => s.description = d.clone(),
+        Edit::SetSource(text) => s.source = text.clone(),
         Edit::SetBackground(b) => s.background = b.clone(),
         Edit::SetPrintLabels(on) => s.print.labels = *on,
         Edit::SetRoiMargin(m) => s.roi.margin = *m,
