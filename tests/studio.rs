@@ -40,6 +40,15 @@ fn studio(s: &Setup) -> Harness<'static, Studio> {
     h
 }
 
+/// Families panel → select `builtin` → Duplicate as new design.
+fn duplicate(h: &mut Harness<'static, Studio>, builtin: &str) {
+    h.get_by_label(builtin).click();
+    h.run();
+    h.get_by_label("Duplicate as new design").click();
+    h.run();
+    assert_eq!(h.state().panel, Panel::Designer);
+}
+
 /// Frames until `done` holds (background work such as codebook generation).
 fn run_until(h: &mut Harness<'static, Studio>, what: &str, done: impl Fn(&Studio) -> bool) {
     let start = Instant::now();
@@ -90,10 +99,7 @@ fn design_a_family_from_a_builtin_and_print_it() {
     let s = setup();
     let mut h = studio(&s);
 
-    h.get_by_label("apriltag-36h11").click();
-    h.run();
-    h.get_by_label("Duplicate as new design").click();
-    h.run();
+    duplicate(&mut h, "apriltag-36h11");
     assert_eq!(h.state().panel, Panel::Designer);
     assert_eq!(spec(&h).name, "apriltag-36h11-copy");
     assert!(h.query_by_label_contains("(unsaved)").is_some());
@@ -216,10 +222,7 @@ impl egui::DroppedFile for Dropped {
 fn a_malformed_family_dropped_on_the_window_is_refused_by_file_and_field() {
     let s = setup();
     let mut h = studio(&s);
-    h.get_by_label("aruco-4x4_50").click();
-    h.run();
-    h.get_by_label("Duplicate as new design").click();
-    h.run();
+    duplicate(&mut h, "aruco-4x4_50");
     let before = spec(&h);
     let listed = h.state().library.entries.len();
 
@@ -267,10 +270,7 @@ fn a_malformed_family_dropped_on_the_window_is_refused_by_file_and_field() {
 fn impossible_print_setups_say_why_and_export_nothing() {
     let s = setup();
     let mut h = studio(&s);
-    h.get_by_label("apriltag-36h11").click();
-    h.run();
-    h.get_by_label("Duplicate as new design").click();
-    h.run();
+    duplicate(&mut h, "apriltag-36h11");
     h.get_by_label("Print").click();
     h.run();
 
@@ -306,10 +306,7 @@ fn impossible_print_setups_say_why_and_export_nothing() {
 fn a_design_survives_a_restart_with_its_unsaved_marker() {
     let s = setup();
     let mut h = studio(&s);
-    h.get_by_label("aruco-5x5_100").click();
-    h.run();
-    h.get_by_label("Duplicate as new design").click();
-    h.run();
+    duplicate(&mut h, "aruco-5x5_100");
     h.get_by_label("Quiet zone (cells)")
         .set_value_accesskit(2.0);
     h.run();

@@ -41,6 +41,26 @@ pub trait FileAccess {
     fn accept_dropped(&mut self, file: egui::DroppedFileHandle) -> Result<(), String>;
 }
 
+/// Reads a picked file; a file that cannot be read arrives empty, under a name that says why, so
+/// that loading it reports the problem like any other bad file.
+#[cfg(not(target_arch = "wasm32"))]
+fn read_file(path: PathBuf, purpose: Purpose) -> OpenedFile {
+    match std::fs::read(&path) {
+        Ok(bytes) => OpenedFile {
+            purpose,
+            name: path.display().to_string(),
+            path: Some(path),
+            bytes,
+        },
+        Err(e) => OpenedFile {
+            purpose,
+            name: format!("{}: {e}", path.display()),
+            path: None,
+            bytes: Vec::new(),
+        },
+    }
+}
+
 /// Reads a dropped file where reading is synchronous (everywhere but a browser).
 #[cfg(not(target_arch = "wasm32"))]
 fn read_dropped(file: &egui::DroppedFileHandle) -> Result<OpenedFile, String> {
@@ -128,15 +148,7 @@ impl FileAccess for FolderFiles {
     fn request_open(&mut self, purpose: Purpose) {
         if !self.to_open.is_empty() {
             let path = self.to_open.remove(0);
-            match std::fs::read(&path) {
-                Ok(bytes) => self.opened.push(OpenedFile {
-                    purpose,
-                    name: path.display().to_string(),
-                    path: Some(path),
-                    bytes,
-                }),
-                Err(e) => log::warn!("{}: {e}", path.display()),
-            }
+            self.opened.push(read_file(path, purpose));
         }
     }
 
@@ -196,20 +208,7 @@ impl FileAccess for NativeFiles {
             .add_filter("JSON", &["json"])
             .pick_file();
         if let Some(path) = picked {
-            match std::fs::read(&path) {
-                Ok(bytes) => self.opened.push(OpenedFile {
-                    purpose,
-                    name: path.display().to_string(),
-                    path: Some(path),
-                    bytes,
-                }),
-                Err(e) => self.opened.push(OpenedFile {
-                    purpose,
-                    name: format!("{}: {e}", path.display()),
-                    path: None,
-                    bytes: Vec::new(),
-                }),
-            }
+            self.opened.push(read_file(path, purpose));
         }
     }
 

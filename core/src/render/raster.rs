@@ -18,19 +18,7 @@ pub fn rasterize(scene: &MarkerScene, px_per_mm: f64) -> Result<Pixmap, RenderEr
     // Scale so that the scene spans the whole image exactly even after rounding to pixels.
     let t = Transform::from_scale((w / scene.width_mm) as f32, (h / scene.height_mm) as f32);
     for item in &scene.items {
-        let Some(path) = to_skia(&item.path.0) else {
-            continue;
-        };
-        if let Some(c) = item.fill {
-            pixmap.fill_path(&path, &paint(c), FillRule::Winding, t, None);
-        }
-        if let Some((c, width)) = item.stroke {
-            let stroke = Stroke {
-                width: width as f32,
-                ..Stroke::default()
-            };
-            pixmap.stroke_path(&path, &paint(c), &stroke, t, None);
-        }
+        draw(&mut pixmap, &item.path.0, item.fill, item.stroke, t);
     }
     Ok(pixmap)
 }
@@ -44,6 +32,29 @@ pub fn encode_png(pixmap: &Pixmap) -> Result<Vec<u8>, RenderError> {
     pixmap
         .encode_png()
         .map_err(|e| RenderError::Encode(e.to_string()))
+}
+
+/// Fills and/or strokes one path (stroke width in the path's own units).
+fn draw(
+    pixmap: &mut Pixmap,
+    segs: &[Seg],
+    fill: Option<Rgb>,
+    stroke: Option<(Rgb, f64)>,
+    t: Transform,
+) {
+    let Some(path) = to_skia(segs) else {
+        return;
+    };
+    if let Some(c) = fill {
+        pixmap.fill_path(&path, &paint(c), FillRule::Winding, t, None);
+    }
+    if let Some((c, width)) = stroke {
+        let stroke = Stroke {
+            width: width as f32,
+            ..Stroke::default()
+        };
+        pixmap.stroke_path(&path, &paint(c), &stroke, t, None);
+    }
 }
 
 fn paint(c: Rgb) -> Paint<'static> {
@@ -115,19 +126,7 @@ pub fn category_swatch(
     // Cell coordinates are relative to the keypoint, so the centre of the image is (0, 0).
     let t = Transform::from_scale(s, s).post_translate(px as f32 / 2.0, px as f32 / 2.0);
     for item in &pattern.items {
-        let Some(path) = to_skia(&item.path.0) else {
-            continue;
-        };
-        if let Some(c) = item.fill {
-            pixmap.fill_path(&path, &paint(c), FillRule::Winding, t, None);
-        }
-        if let Some((c, width)) = item.stroke {
-            let stroke = Stroke {
-                width: width as f32,
-                ..Stroke::default()
-            };
-            pixmap.stroke_path(&path, &paint(c), &stroke, t, None);
-        }
+        draw(&mut pixmap, &item.path.0, item.fill, item.stroke, t);
     }
     Ok(pixmap)
 }
