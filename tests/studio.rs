@@ -320,3 +320,69 @@ fn a_design_survives_a_restart_with_its_unsaved_marker() {
     assert_eq!(again.design.as_ref().unwrap().spec(), &edited);
     assert!(again.is_dirty(), "still marked unsaved after the restart");
 }
+
+/// A click at `p` marker units on the marker preview (the view maps units to screen points).
+fn click_marker(h: &mut Harness<'static, Studio>, p: [f64; 2]) {
+    let rect = h.get_by_label("marker preview").rect();
+    let family = h
+        .state()
+        .design
+        .as_ref()
+        .unwrap()
+        .preview_family()
+        .unwrap()
+        .clone();
+    let view = tagsmith_studio::studio::preview::MarkerView::new(&family, 0, rect).unwrap();
+    let pos = view.to_screen(p);
+    for pressed in [true, false] {
+        h.event(egui::Event::PointerButton {
+            pos,
+            button: egui::PointerButton::Primary,
+            pressed,
+            modifiers: egui::Modifiers::NONE,
+        });
+        h.step();
+    }
+    h.run();
+}
+
+#[test]
+fn roi_points_picked_by_clicking_are_checked_before_they_are_used() {
+    let s = setup();
+    let mut h = studio(&s);
+    duplicate(&mut h, "aruco-4x4_50");
+    let before = spec(&h).roi.points;
+    let side = grid(&h).size as f64;
+
+    h.get_by_label("Pick ROI points").click();
+    h.run();
+    // Counter-clockwise on screen: refused with the core's reason, before anything changes.
+    for p in [[0.0, 0.0], [0.0, side], [side, side], [side, 0.0]] {
+        click_marker(&mut h, p);
+    }
+    assert_eq!(h.state().designer.roi_draft.len(), 4);
+    assert!(h.query_by_label_contains("counter-clockwise").is_some());
+    assert_eq!(spec(&h).roi.points, before);
+
+    h.get_by_label("Clear picked points").click();
+    h.run();
+    // Clockwise, starting from the top-right corner: a valid, rotated ROI.
+    let clockwise = [[side, 0.0], [side, side], [0.0, side], [0.0, 0.0]];
+    for p in clockwise {
+        click_marker(&mut h, p);
+    }
+    assert!(h.query_by_label_contains("counter-clockwise").is_none());
+    h.get_by_label("Use these ROI points").click();
+    h.run();
+    assert_eq!(
+        spec(&h).roi.points,
+        clockwise.to_vec(),
+        "clicks snap to the grid"
+    );
+    assert!(h.state().design.as_ref().unwrap().validation().is_ok());
+
+    // Undo brings the old ROI back.
+    h.get_by_label("Undo").click();
+    h.run();
+    assert_eq!(spec(&h).roi.points, before);
+}
