@@ -313,6 +313,17 @@ fn a_design_survives_a_restart_with_its_unsaved_marker() {
     let kept = h.state().persisted();
     let edited = spec(&h);
 
+    // Two designs copied from the same built-in are saved side by side, not over each other.
+    h.get_by_label("Save").click();
+    h.run();
+    h.get_by_label("Families").click();
+    h.run();
+    duplicate(&mut h, "aruco-5x5_100");
+    h.get_by_label("Save").click();
+    h.run();
+    assert!(s.user.join("aruco-5x5_100-copy.json").exists());
+    assert!(s.user.join("aruco-5x5_100-copy-2.json").exists());
+
     let mut files = FolderFiles::new(&s.out);
     files.user_folder = Some(s.user.clone());
     let mut again = Studio::new(Box::new(files));

@@ -163,10 +163,17 @@ impl Studio {
             return;
         };
         let json = tagsmith::family::to_json_string(design.spec());
+        // A first save goes to the user's folder under a name no other file has there, so two
+        // copies of the same built-in never overwrite each other.
         let target = design.path.clone().or_else(|| {
-            self.files
-                .user_folder()
-                .map(|dir| dir.join(design.file_name()))
+            let dir = self.files.user_folder()?;
+            let stem = design.spec().name.clone();
+            (1..)
+                .map(|n| match n {
+                    1 => dir.join(format!("{stem}.json")),
+                    n => dir.join(format!("{stem}-{n}.json")),
+                })
+                .find(|p| !p.exists())
         });
         let result = match &target {
             Some(path) => self.files.save_to(path, json.as_bytes()).map(Some),
