@@ -150,7 +150,7 @@ pub fn show(studio: &mut Studio, ui: &mut egui::Ui) {
         {
             action = Some(false);
         }
-        if ui.button("Reload folder").clicked() {
+        if studio.files.user_folder().is_some() && ui.button("Reload folder").clicked() {
             studio.reload_library();
         }
     });
