@@ -306,11 +306,23 @@ fn schema_command_prints_the_committed_schema() {
 }
 
 #[test]
-fn no_subcommand_starts_the_studio_entry_point() {
+fn without_a_display_the_studio_says_to_use_the_command_line() {
     let dir = tempfile::tempdir().unwrap();
-    let run = tagsmith(dir.path(), &[]);
-    run.ok();
-    assert!(run.stdout.contains("tagsmith families"), "{}", run.stdout);
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_tagsmith"))
+        .current_dir(dir.path())
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .env_remove("WAYLAND_SOCKET")
+        // Keep the studio's persistence out of the user's real data folder.
+        .env("XDG_DATA_HOME", dir.path())
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("studio window could not open") && stderr.contains("tagsmith --help"),
+        "{stderr}"
+    );
 }
 
 #[test]
