@@ -397,3 +397,43 @@ fn roi_points_picked_by_clicking_are_checked_before_they_are_used() {
     h.run();
     assert_eq!(spec(&h).roi.points, before);
 }
+
+/// The desktop window under Xvfb with software GL, one frame written to a PNG. Needs Debian's
+/// `xvfb libgl1-mesa-dri libegl1` and the screenshot feature:
+/// `cargo test -p tagsmith-studio --features screenshot --test studio -- --ignored desktop`
+#[test]
+#[ignore = "needs Xvfb and --features screenshot"]
+fn desktop_screenshot_under_xvfb() {
+    let dir = tempfile::tempdir().unwrap();
+    let shot = dir.path().join("designer.png");
+    let out = std::process::Command::new("xvfb-run")
+        .args(["-a", "-s", "-screen 0 1400x900x24"])
+        .arg(env!("CARGO_BIN_EXE_tagsmith"))
+        .args([
+            "studio",
+            "apriltag-xo-36h11",
+            "--panel",
+            "designer",
+            "--fresh",
+        ])
+        .env("EFRAME_SCREENSHOT_TO", &shot)
+        .env("XDG_DATA_HOME", dir.path())
+        .output()
+        .expect("xvfb-run is installed");
+    assert!(
+        shot.exists(),
+        "no screenshot: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let image = tagsmith::synth::decode_gray_png(&std::fs::read(&shot).unwrap()).unwrap();
+    assert!(image.width >= 1000 && image.height >= 700);
+    // A drawn window, not a blank frame: dark panels and a white marker preview.
+    let (dark, light) = image.pixels.iter().fold((0, 0), |(d, l), &p| {
+        (d + usize::from(p < 60), l + usize::from(p > 200))
+    });
+    let n = image.pixels.len();
+    assert!(
+        dark > n / 10 && light > n / 20,
+        "dark {dark}, light {light} of {n}"
+    );
+}
