@@ -1,6 +1,7 @@
 //! `tagsmith`: the Tagsmith studio (no subcommand) and its command-line interface.
 
 mod cli;
+mod cli_detect;
 
 use clap::Parser;
 use std::process::ExitCode;
