@@ -162,7 +162,7 @@ pub fn train(a: TrainArgs) -> Result<()> {
                 samples_per_s,
                 100.0 * data_wait
             );
-            if plain && step % 100 == 0 {
+            if plain && step.is_multiple_of(100) {
                 say(format!("step {step}/{}: {message}", config.steps));
             }
             bar.set_message(message);
@@ -262,7 +262,7 @@ pub fn detect(a: DetectArgs) -> Result<()> {
         ),
     };
     let side_mm = a.side_mm.unwrap_or(family.spec().print.marker_side_mm);
-    if !(side_mm > 0.0) {
+    if side_mm.is_nan() || side_mm <= 0.0 {
         return Err(bad(anyhow!("--side-mm must be positive")));
     }
     let model = load_model(a.model.as_deref(), &family)?;

@@ -53,7 +53,7 @@ pub fn sort_to_template(
         let fitted = Homography::from_points(&src, &dst).ok()?;
         best = Some(Sorted {
             slots,
-            to_patch: fitted.clone(),
+            to_patch: fitted,
         });
         h = fitted;
     }

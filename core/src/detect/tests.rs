@@ -79,9 +79,7 @@ fn targets_decode_to_the_ground_truth() {
                 );
             }
             assert!(targets.positives() >= keypoints.len());
-            assert!(
-                targets.mask.iter().any(|&m| m == 1.0) && targets.mask.iter().any(|&m| m == 0.0)
-            );
+            assert!(targets.mask.contains(&1.0) && targets.mask.contains(&0.0));
         }
     }
 }

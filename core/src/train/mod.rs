@@ -228,12 +228,12 @@ pub fn train(
             samples_per_s: ((step - first_step) as usize * config.batch) as f64 / elapsed.max(1e-9),
             data_wait: loader.waited.as_secs_f64() / elapsed.max(1e-9),
         });
-        if step % config.validate_every == 0 || step == config.steps {
+        if step.is_multiple_of(config.validate_every) || step == config.steps {
             let metrics = run_validation(&net, family, &spec, &validation, net_config.classes);
             history.push((step, metrics));
             on_event(Event::Validated { step, metrics });
         }
-        if step % config.checkpoint_every == 0 || step == config.steps {
+        if step.is_multiple_of(config.checkpoint_every) || step == config.steps {
             save(
                 &net,
                 &optim,
