@@ -20,7 +20,10 @@ pub mod stage2;
 use crate::geometry::GrayImage;
 
 /// Stage-2 weights shipped in `assets/models/` for built-in families, by family name.
-const SHIPPED: &[(&str, &[u8])] = &[];
+const SHIPPED: &[(&str, &[u8])] = &[(
+    "apriltag-36h11",
+    include_bytes!("../../../assets/models/apriltag-36h11.stage2.bin"),
+)];
 
 /// The shipped stage-2 model file of a built-in family, if it has one.
 pub fn shipped_model(family: &str) -> Option<&'static [u8]> {
@@ -50,5 +53,7 @@ pub fn normalise_patch(patch: &GrayImage) -> Vec<f32> {
         .collect()
 }
 
+#[cfg(all(test, feature = "learn"))]
+mod shipped_tests;
 #[cfg(test)]
 mod tests;
