@@ -4,8 +4,8 @@
 //! predictor (C + 1 class logits and a 2-D offset per anchor) and the 2 × 2 template predictor.
 //!
 //! Sizes are chosen for two CPU cores: the reference runs five 512-channel blocks at stride 8
-//! (1.76 M parameters, 1.9 GMAC per patch); here the widest layer has `width` channels (64 by
-//! default) and dilations 2 and 4 give the receptive field (≈ 80 px, seven cells of 36h11) that
+//! (1.76 M parameters, 1.9 GMAC per patch); here the widest layer has `width` channels (32 by
+//! default: 12.7 k parameters, 10 MMAC per 128² patch) and dilations 2 and 4 give the receptive field (≈ 80 px, seven cells of 36h11) that
 //! the reference gets from depth. See [`macs`] for the arithmetic.
 
 use burn::module::Module;
@@ -28,14 +28,6 @@ pub struct NetConfig {
 }
 
 impl NetConfig {
-    pub fn new(classes: usize) -> Self {
-        Self {
-            classes,
-            width: 64,
-            patch: 128,
-        }
-    }
-
     /// (input channels, output channels, stride, dilation) of the trunk's separable blocks.
     fn trunk(&self) -> [(usize, usize, usize, usize); 5] {
         let w = self.width;

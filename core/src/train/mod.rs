@@ -48,14 +48,14 @@ pub struct TrainConfig {
 impl Default for TrainConfig {
     fn default() -> Self {
         Self {
-            steps: 20_000,
+            steps: 7000,
             batch: 16,
             learning_rate: 3e-4,
             decay_fraction: 0.25,
-            width: 64,
+            width: 32,
             seed: 1,
             checkpoint_every: 250,
-            validate_every: 1000,
+            validate_every: 500,
             validation_patches: 200,
             workers: 1,
         }
