@@ -36,6 +36,16 @@ fn roi_arg(truth: &serde_json::Value) -> String {
 }
 
 #[test]
+fn the_learned_detector_commands_have_help() {
+    let dir = tempfile::tempdir().unwrap();
+    for cmd in ["train", "detect", "detect-set"] {
+        let run = tagsmith(dir.path(), &[cmd, "--help"]);
+        run.ok();
+        assert!(run.stdout.contains("Usage: tagsmith"), "{cmd}");
+    }
+}
+
+#[test]
 fn detect_prints_the_id_keypoints_and_pose_and_annotates() {
     let dir = tempfile::tempdir().unwrap();
     let truth = scene(dir.path());

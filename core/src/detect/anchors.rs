@@ -247,13 +247,14 @@ impl RawOutputs {
     }
 }
 
-/// A keypoint found in the patch: position (patch pixels), category, and the summed class
-/// probabilities of the anchors that voted for it.
+/// A keypoint found in the patch.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Found {
+    /// Patch pixels.
     pub pos: [f64; 2],
+    /// The category with the largest probability summed over the cluster's anchors.
     pub category: usize,
-    /// Probability of `category` at the most confident anchor of the cluster.
+    /// The most confident anchor's largest non-background probability.
     pub confidence: f64,
 }
 
