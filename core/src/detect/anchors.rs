@@ -256,6 +256,8 @@ pub struct Found {
     pub category: usize,
     /// The most confident anchor's largest non-background probability.
     pub confidence: f64,
+    /// Per category, its probability summed over the cluster's anchors.
+    pub votes: Vec<f64>,
 }
 
 /// Confidence filter, then greedy clustering in order of decreasing confidence: each cluster is
@@ -309,6 +311,7 @@ pub fn extract(spec: &PatchSpec, raw: &RawOutputs, min_confidence: f64) -> Vec<F
             pos: [sum[0] / weight, sum[1] / weight],
             category,
             confidence: candidates[k].1,
+            votes: votes[1..].to_vec(),
         });
     }
     found

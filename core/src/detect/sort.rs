@@ -4,7 +4,7 @@
 //! patch; a cell is 11 px there).
 
 use super::anchors::Found;
-use crate::family::Family;
+use crate::family::{Assignment, Family};
 use crate::geometry::Homography;
 
 /// Found keypoints in template order.
@@ -91,12 +91,50 @@ fn match_once(
     slots
 }
 
+/// The categories that can appear at each template slot whichever way the marker is turned: a
+/// fixed keypoint's own category, or any symbol category at a symbol keypoint (the union over
+/// the layout's rotations). On a square grid the frame is the same under every turn, so a frame
+/// slot admits only the frame's category and a data slot only symbols.
+pub fn slot_categories(family: &Family) -> Vec<Vec<usize>> {
+    let kps = family.keypoints();
+    let symbols: Vec<usize> = (0..family.q())
+        .map(|s| family.symbol_category(s as u8))
+        .collect();
+    let mut slots = vec![Vec::new(); kps.len()];
+    for rotation in family.rotations() {
+        for (i, &slot) in rotation.keypoint_perm.iter().enumerate() {
+            let allowed = match kps[i].assignment {
+                Assignment::Fixed(c) => std::slice::from_ref(&c).to_vec(),
+                Assignment::Symbol(_) => symbols.clone(),
+            };
+            for c in allowed {
+                if !slots[slot].contains(&c) {
+                    slots[slot].push(c);
+                }
+            }
+        }
+    }
+    slots
+}
+
 /// The category read at every family keypoint (None where nothing matched), for
-/// [`crate::codebook::decode`].
-pub fn observed(sorted: &Sorted, found: &[Found]) -> Vec<Option<usize>> {
+/// [`crate::codebook::decode`]: the most voted category among those the slot admits, so a data
+/// cell is read as the more likely of the symbols even when the network finds it closer to the
+/// frame's look.
+pub fn observed(family: &Family, sorted: &Sorted, found: &[Found]) -> Vec<Option<usize>> {
+    let admitted = slot_categories(family);
     sorted
         .slots
         .iter()
-        .map(|s| s.map(|f| found[f].category))
+        .zip(&admitted)
+        .map(|(s, allowed)| {
+            s.map(|f| {
+                allowed
+                    .iter()
+                    .copied()
+                    .max_by(|&a, &b| found[f].votes[a].total_cmp(&found[f].votes[b]))
+                    .unwrap_or(found[f].category)
+            })
+        })
         .collect()
 }

@@ -155,19 +155,22 @@ impl Stage2 {
         let found = extract(&self.spec, raw, MIN_CONFIDENCE);
         let corners = raw.template_corners(&self.spec);
         let sorted = sort_to_template(family, &found, &corners)?;
-        let decoded = decode(family, &observed(&sorted, &found), None)?;
+        let read = observed(family, &sorted, &found);
+        let decoded = decode(family, &read, None)?;
         let rotation = &family.rotations()[decoded.rotation];
         let kps = family.keypoints();
         let keypoints: Vec<DetectedKeypoint> = (0..kps.len())
             .filter_map(|i| {
-                let f = &found[sorted.slots[rotation.keypoint_perm[i]]?];
+                let slot = rotation.keypoint_perm[i];
+                let f = &found[sorted.slots[slot]?];
+                let category = read[slot]?;
                 let [x, y] = to_image.apply(f.pos);
                 Some(DetectedKeypoint {
                     index: i,
                     x,
                     y,
-                    category: f.category,
-                    symbol: family.category_symbol(f.category),
+                    category,
+                    symbol: family.category_symbol(category),
                     confidence: f.confidence,
                 })
             })

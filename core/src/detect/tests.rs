@@ -61,7 +61,7 @@ fn targets_decode_to_the_ground_truth() {
             let corners = raw.template_corners(&spec);
             let sorted = sort_to_template(&family, &found, &corners)
                 .unwrap_or_else(|| panic!("{name} seed {seed}: {corners:?} {:?}", &roi));
-            let read = observed(&sorted, &found);
+            let read = observed(&family, &sorted, &found);
             let decoded = decode(&family, &read, Some(0)).unwrap();
             assert_eq!(decoded.id, truth.id, "{name} seed {seed}");
             assert_eq!(decoded.corrected_errors, 0);

@@ -18,7 +18,8 @@ pub struct Metrics {
     pub patches: usize,
     /// Visible keypoints with a found keypoint sorted to them within half a cell pitch.
     pub keypoint_recall: f64,
-    /// Of those, the category read right.
+    /// Of those, the category read right (the read-out the decoder uses: the most likely of the
+    /// categories the keypoint's slot admits).
     pub symbol_accuracy: f64,
     /// Patches decoded to the right ID.
     pub id_accuracy: f64,
@@ -60,7 +61,8 @@ pub fn score(
         let Some(sorted) = sort_to_template(family, &found, &raw.template_corners(spec)) else {
             continue;
         };
-        if decode(family, &observed(&sorted, &found), None).is_some_and(|d| d.id == truth.id) {
+        let read = observed(family, &sorted, &found);
+        if decode(family, &read, None).is_some_and(|d| d.id == truth.id) {
             right_id += 1;
         }
         // Slots are in the order the marker is seen; the truth is canonical. Pair each truth
@@ -74,14 +76,15 @@ pub fn score(
             let nearest = sorted
                 .slots
                 .iter()
-                .flatten()
-                .map(|&f| (f, (found[f].pos[0] - t.x).hypot(found[f].pos[1] - t.y)))
+                .enumerate()
+                .filter_map(|(slot, f)| f.map(|f| (slot, f)))
+                .map(|(slot, f)| (slot, (found[f].pos[0] - t.x).hypot(found[f].pos[1] - t.y)))
                 .min_by(|a, b| a.1.total_cmp(&b.1));
-            if let Some((f, d)) = nearest.filter(|(_, d)| *d < 0.5 * pitch) {
+            if let Some((slot, d)) = nearest.filter(|(_, d)| *d < 0.5 * pitch) {
                 recalled += 1;
                 sq += d * d;
                 errors.push(d);
-                if found[f].category == t.category {
+                if read[slot] == Some(t.category) {
                     right_symbol += 1;
                 }
             }
