@@ -9,7 +9,7 @@ use super::net::{NetConfig, Outputs, Stage2Net};
 use super::normalise_patch;
 use super::sort::{observed, sort_to_template};
 use crate::codebook::decode;
-use crate::family::Family;
+use crate::family::{Assignment, Family};
 use crate::geometry::{warp_bilinear, Camera, GrayImage, Homography};
 use crate::pose::{marker_plane_points, solve_planar, PnpSolution};
 use burn::tensor::activation::softmax;
@@ -170,7 +170,11 @@ impl Stage2 {
                     x,
                     y,
                     category,
-                    symbol: family.category_symbol(category),
+                    // Frame cells may be drawn with a symbol's category; only code keypoints
+                    // carry a symbol.
+                    symbol: matches!(kps[i].assignment, Assignment::Symbol(_))
+                        .then(|| family.category_symbol(category))
+                        .flatten(),
                     confidence: f.confidence,
                 })
             })
