@@ -20,10 +20,16 @@ pub mod stage2;
 use crate::geometry::GrayImage;
 
 /// Stage-2 weights shipped in `assets/models/` for built-in families, by family name.
-const SHIPPED: &[(&str, &[u8])] = &[(
-    "apriltag-36h11",
-    include_bytes!("../../../assets/models/apriltag-36h11.stage2.bin"),
-)];
+const SHIPPED: &[(&str, &[u8])] = &[
+    (
+        "apriltag-36h11",
+        include_bytes!("../../../assets/models/apriltag-36h11.stage2.bin"),
+    ),
+    (
+        "apriltag-xo-36h11",
+        include_bytes!("../../../assets/models/apriltag-xo-36h11.stage2.bin"),
+    ),
+];
 
 /// The shipped stage-2 model file of a built-in family, if it has one.
 pub fn shipped_model(family: &str) -> Option<&'static [u8]> {

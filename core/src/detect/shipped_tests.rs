@@ -9,9 +9,18 @@ use crate::synth::{synthesize, Mode, SynthConfig};
 use nalgebra::{Matrix3, Rotation3, Vector3};
 
 #[test]
-fn shipped_weights_decode_a_noisy_marker_and_its_pose() {
-    let family = builtin::get("apriltag-36h11").unwrap().unwrap();
-    let bytes = shipped_model(family.name()).expect("36h11 weights are shipped");
+fn shipped_36h11_weights_decode_a_noisy_marker_and_its_pose() {
+    decodes_noisy_markers("apriltag-36h11");
+}
+
+#[test]
+fn shipped_xo_weights_decode_a_noisy_marker_and_its_pose() {
+    decodes_noisy_markers("apriltag-xo-36h11");
+}
+
+fn decodes_noisy_markers(name: &str) {
+    let family = builtin::get(name).unwrap().unwrap();
+    let bytes = shipped_model(family.name()).expect("the weights are shipped");
     let model = Stage2::from_bytes(bytes, "shipped", &family).unwrap();
     let mut config = SynthConfig::new(Mode::Camera);
     config.markers = [1, 1];
