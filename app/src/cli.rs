@@ -54,6 +54,12 @@ pub enum Command {
     /// The evaluation harness: benchmark sets, scoring of detections.
     #[command(subcommand)]
     Eval(EvalCommand),
+    /// Train a detector network for a family (stage 2: keypoints on rectified patches).
+    Train(crate::cli_detect::TrainArgs),
+    /// Decode the marker in a ROI of an image with the learned stage 2: ID, keypoints, pose (JSON).
+    Detect(crate::cli_detect::DetectArgs),
+    /// Run the learned stage 2 on a benchmark set from perturbed ground-truth ROIs (detections file).
+    DetectSet(crate::cli_detect::DetectSetArgs),
 }
 
 #[derive(Subcommand, Debug)]
@@ -252,15 +258,15 @@ impl fmt::Display for CliError {
     }
 }
 
-fn bad(e: impl Into<anyhow::Error>) -> CliError {
+pub(crate) fn bad(e: impl Into<anyhow::Error>) -> CliError {
     CliError::BadInput(e.into())
 }
 
-fn failed(e: impl Into<anyhow::Error>) -> CliError {
+pub(crate) fn failed(e: impl Into<anyhow::Error>) -> CliError {
     CliError::Failed(e.into())
 }
 
-type Result<T> = std::result::Result<T, CliError>;
+pub(crate) type Result<T> = std::result::Result<T, CliError>;
 
 pub fn run(command: Command) -> Result<()> {
     match command {
@@ -274,6 +280,9 @@ pub fn run(command: Command) -> Result<()> {
         Command::ExportOpencv { family, output } => export_opencv(&family, &output),
         Command::Synth(a) => synth(a),
         Command::Eval(e) => eval(e),
+        Command::Train(a) => crate::cli_detect::train(a),
+        Command::Detect(a) => crate::cli_detect::detect(a),
+        Command::DetectSet(a) => crate::cli_detect::detect_set(a),
         Command::Schema => {
             print_quietly(&family::schema_json());
             Ok(())
@@ -309,7 +318,7 @@ pub fn load_family(name_or_path: &str) -> Result<Family> {
     )))
 }
 
-fn write_output(path: &Path, bytes: &[u8]) -> Result<()> {
+pub(crate) fn write_output(path: &Path, bytes: &[u8]) -> Result<()> {
     tagsmith::io::write_atomic(path, bytes)
         .with_context(|| format!("cannot write {}", path.display()))
         .map_err(failed)

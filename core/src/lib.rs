@@ -8,6 +8,7 @@
 pub mod builtin;
 pub mod codebook;
 pub mod color;
+pub mod detect;
 pub mod eval;
 pub mod family;
 pub mod geometry;
@@ -15,5 +16,7 @@ pub mod io;
 pub mod pose;
 pub mod render;
 pub mod synth;
+#[cfg(feature = "learn")]
+pub mod train;
 
 pub use family::{Family, FamilyError};

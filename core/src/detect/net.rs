@@ -1,0 +1,195 @@
+//! The stage-2 network (DESIGN §5): a MobileNet-style depthwise-separable trunk to stride 4 on a
+//! 128² patch (the reference: stride 8 on 256², the same anchors per cell pitch), a mask head whose
+//! output is concatenated back onto the features (the reference's "align"), a one-scale anchor
+//! predictor (C + 1 class logits and a 2-D offset per anchor) and the 2 × 2 template predictor.
+//!
+//! Sizes are chosen for two CPU cores: the reference runs five 512-channel blocks at stride 8
+//! (1.76 M parameters, 1.9 GMAC per patch); here the widest layer has `width` channels (32 by
+//! default: 12.7 k parameters, 10 MMAC per 128² patch) and dilations 2 and 4 give the receptive field (≈ 80 px, seven cells of 36h11) that
+//! the reference gets from depth. See [`macs`] for the arithmetic.
+
+use burn::module::Module;
+use burn::nn::conv::{Conv2d, Conv2dConfig};
+use burn::nn::{BatchNorm, BatchNormConfig, PaddingConfig2d};
+use burn::tensor::activation::relu;
+use burn::tensor::{Device, Tensor};
+use serde::{Deserialize, Serialize};
+
+/// Shape of the network; stored in the model file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct NetConfig {
+    /// Anchor classes: the family's categories + background.
+    pub classes: usize,
+    /// Channels of the widest layers; the stem has a quarter, the first block half.
+    pub width: usize,
+    /// Patch side in pixels: the anchor grid is a quarter of it, and the template head halves
+    /// that grid down to 2 × 2, so it is 8 times a power of two.
+    pub patch: usize,
+}
+
+impl NetConfig {
+    /// (input channels, output channels, stride, dilation) of the trunk's separable blocks.
+    fn trunk(&self) -> [(usize, usize, usize, usize); 5] {
+        let w = self.width;
+        [
+            (w / 4, w / 2, 1, 1),
+            (w / 2, w, 2, 1),
+            (w, w, 1, 1),
+            (w, w, 1, 2),
+            (w, w, 1, 4),
+        ]
+    }
+
+    /// Separable blocks of the template head: stride 2 from the anchor grid down to 2 × 2.
+    fn template_blocks(&self) -> usize {
+        let mut g = self.patch / 4;
+        let mut n = 0;
+        while g > 2 {
+            g /= 2;
+            n += 1;
+        }
+        n
+    }
+
+    pub fn init(&self, device: &Device) -> Stage2Net {
+        let w = self.width;
+        let conv = |cin: usize, cout: usize, k: usize| {
+            Conv2dConfig::new([cin, cout], [k, k])
+                .with_padding(PaddingConfig2d::Explicit(k / 2, k / 2, k / 2, k / 2))
+                .init(device)
+        };
+        Stage2Net {
+            stem: Conv2dConfig::new([1, w / 4], [3, 3])
+                .with_stride([2, 2])
+                .with_padding(PaddingConfig2d::Explicit(1, 1, 1, 1))
+                .with_bias(false)
+                .init(device),
+            stem_bn: BatchNormConfig::new(w / 4).init(device),
+            trunk: self
+                .trunk()
+                .iter()
+                .map(|&(cin, cout, s, d)| SeparableBlock::new(cin, cout, s, d, device))
+                .collect(),
+            mask: conv(w, 1, 1),
+            align: conv(w + 1, w, 1),
+            keypoint: SeparableBlock::new(w, w, 1, 1, device),
+            classes: conv(w, self.classes, 3),
+            offsets: conv(w, 2, 3),
+            template: (0..self.template_blocks())
+                .map(|i| SeparableBlock::new(if i == 0 { w } else { w / 2 }, w / 2, 2, 1, device))
+                .collect(),
+            template_out: conv(w / 2, 2, 1),
+        }
+    }
+}
+
+/// Depthwise 3 × 3 → BN → ReLU → pointwise 1 × 1 → BN → ReLU.
+#[derive(Module, Debug)]
+pub struct SeparableBlock {
+    depthwise: Conv2d,
+    bn1: BatchNorm,
+    pointwise: Conv2d,
+    bn2: BatchNorm,
+}
+
+impl SeparableBlock {
+    fn new(cin: usize, cout: usize, stride: usize, dilation: usize, device: &Device) -> Self {
+        Self {
+            depthwise: Conv2dConfig::new([cin, cin], [3, 3])
+                .with_stride([stride, stride])
+                .with_dilation([dilation, dilation])
+                .with_padding(PaddingConfig2d::Explicit(
+                    dilation, dilation, dilation, dilation,
+                ))
+                .with_groups(cin)
+                .with_bias(false)
+                .init(device),
+            bn1: BatchNormConfig::new(cin).init(device),
+            pointwise: Conv2dConfig::new([cin, cout], [1, 1])
+                .with_bias(false)
+                .init(device),
+            bn2: BatchNormConfig::new(cout).init(device),
+        }
+    }
+
+    fn forward(&self, x: Tensor<4>) -> Tensor<4> {
+        let x = relu(self.bn1.forward(self.depthwise.forward(x)));
+        relu(self.bn2.forward(self.pointwise.forward(x)))
+    }
+}
+
+#[derive(Module, Debug)]
+pub struct Stage2Net {
+    stem: Conv2d,
+    stem_bn: BatchNorm,
+    trunk: Vec<SeparableBlock>,
+    mask: Conv2d,
+    align: Conv2d,
+    keypoint: SeparableBlock,
+    classes: Conv2d,
+    offsets: Conv2d,
+    template: Vec<SeparableBlock>,
+    template_out: Conv2d,
+}
+
+/// Raw outputs for a batch of N patches on a G × G anchor grid.
+pub struct Outputs {
+    /// N × (C + 1) × G × G class logits, background first.
+    pub logits: Tensor<4>,
+    /// N × 2 × G × G offsets in strides.
+    pub offsets: Tensor<4>,
+    /// N × 1 × G × G marker-mask logits.
+    pub mask: Tensor<4>,
+    /// N × 2 × 2 × 2: (x, y) × 2 × 2 anchors, encoded as the anchors module says.
+    pub template: Tensor<4>,
+}
+
+impl Stage2Net {
+    /// `x`: N × 1 × P × P normalised patches.
+    pub fn forward(&self, x: Tensor<4>) -> Outputs {
+        let mut x = relu(self.stem_bn.forward(self.stem.forward(x)));
+        for block in &self.trunk {
+            x = block.forward(x);
+        }
+        let mask = self.mask.forward(x.clone());
+        let features = relu(self.align.forward(Tensor::cat(vec![mask.clone(), x], 1)));
+        let k = self.keypoint.forward(features.clone());
+        let mut t = features;
+        for block in &self.template {
+            t = block.forward(t);
+        }
+        Outputs {
+            logits: self.classes.forward(k.clone()),
+            offsets: self.offsets.forward(k),
+            mask,
+            template: self.template_out.forward(t),
+        }
+    }
+}
+
+/// Multiply-accumulates of one forward pass on one patch, counted layer by layer (convolutions
+/// only; BN, ReLU and the concatenation are negligible).
+pub fn macs(config: &NetConfig) -> u64 {
+    let conv = |side: usize, cin: usize, cout: usize, k: usize, groups: usize| -> u64 {
+        (side * side * cout * (cin / groups) * k * k) as u64
+    };
+    let w = config.width;
+    let mut side = config.patch / 2;
+    let mut total = conv(side, 1, w / 4, 3, 1);
+    let sep = |side: usize, cin: usize, cout: usize| {
+        conv(side, cin, cin, 3, cin) + conv(side, cin, cout, 1, 1)
+    };
+    for (cin, cout, s, _) in config.trunk() {
+        side /= s;
+        total += sep(side, cin, cout);
+    }
+    total += conv(side, w, 1, 1, 1) + conv(side, w + 1, w, 1, 1);
+    total += sep(side, w, w) + conv(side, w, config.classes, 3, 1) + conv(side, w, 2, 3, 1);
+    let mut cin = w;
+    for _ in 0..config.template_blocks() {
+        side /= 2;
+        total += sep(side, cin, w / 2);
+        cin = w / 2;
+    }
+    total + conv(side, w / 2, 2, 1, 1)
+}

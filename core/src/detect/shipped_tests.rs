@@ -1,0 +1,73 @@
+//! The shipped weights on whole images: a marker rendered by a pinhole camera at a known pose,
+//! with sensor noise and blur, found from a rough ROI.
+
+use super::shipped_model;
+use super::stage2::Stage2;
+use crate::builtin;
+use crate::pose::Pose;
+use crate::synth::{synthesize, Mode, SynthConfig};
+use nalgebra::{Matrix3, Rotation3, Vector3};
+
+#[test]
+fn shipped_36h11_weights_decode_a_noisy_marker_and_its_pose() {
+    decodes_noisy_markers("apriltag-36h11");
+}
+
+#[test]
+fn shipped_xo_weights_decode_a_noisy_marker_and_its_pose() {
+    decodes_noisy_markers("apriltag-xo-36h11");
+}
+
+fn decodes_noisy_markers(name: &str) {
+    let family = builtin::get(name).unwrap().unwrap();
+    let bytes = shipped_model(family.name()).expect("the weights are shipped");
+    let model = Stage2::from_bytes(bytes, "shipped", &family).unwrap();
+    let mut config = SynthConfig::new(Mode::Camera);
+    config.markers = [1, 1];
+    config.side_m = [0.05, 0.05];
+    config.distance_m = [0.25, 0.4];
+    config.view_angle_deg = [0.0, 45.0];
+    config.augment.marker_black = [20.0, 50.0];
+    config.augment.marker_white = [190.0, 235.0];
+    config.augment.noise_sigma = [4.0, 4.0];
+    config.augment.blur_sigma = [0.6, 0.6];
+    config.augment.spotlight_probability = 0.0;
+    config.augment.motion_blur_probability = 0.0;
+    config.augment.marker_motion_blur_probability = 0.0;
+    config.augment.barrel_probability = 0.0;
+    for seed in 0..4 {
+        let sample = synthesize(&family, &config, seed).unwrap();
+        let truth = &sample.truth.markers[0];
+        let camera = sample.truth.camera.unwrap();
+        let t = truth.pose.as_ref().unwrap();
+        let expected = Pose {
+            rotation: Rotation3::from_matrix_unchecked(Matrix3::from_fn(|i, j| t.rotation[i][j])),
+            translation: Vector3::from(t.translation_m),
+        };
+        // A stage-1-like ROI: each corner off by up to 4 % of the side, starting at another
+        // corner (the marker appears turned).
+        let side = (truth.roi[1][0] - truth.roi[0][0]).hypot(truth.roi[1][1] - truth.roi[0][1]);
+        let jitter = [[0.04, -0.03], [-0.02, 0.04], [0.03, 0.02], [-0.04, -0.01]];
+        let start = seed as usize % 4;
+        let roi: [[f64; 2]; 4] = std::array::from_fn(|j| {
+            let p = truth.roi[(j + start) % 4];
+            [p[0] + jitter[j][0] * side, p[1] + jitter[j][1] * side]
+        });
+        let found = model
+            .detect(&sample.image, &roi, 2, Some((&camera, t.side_m)))
+            .unwrap_or_else(|| panic!("seed {seed}: not decoded"));
+        assert_eq!(found.id, truth.id, "seed {seed}");
+        assert!(
+            found.keypoints.len() >= 60,
+            "seed {seed}: {} keypoints",
+            found.keypoints.len()
+        );
+        let pose = found.pose.expect("a pose from all keypoints").pose;
+        let position_mm = pose.position_error(&expected) * 1000.0;
+        let rotation_deg = pose.rotation_error_deg(&expected);
+        assert!(
+            position_mm < 5.0 && rotation_deg < 2.0,
+            "seed {seed}: position error {position_mm:.2} mm, rotation error {rotation_deg:.2}°"
+        );
+    }
+}

@@ -1,0 +1,237 @@
+//! The stage-2 pipeline on an image: warp the ROI to a patch, run the network, extract and sort
+//! the keypoints, decode the ID, map the keypoints back to the image, solve the pose; then once
+//! more from the ROI the first pass's keypoints give (DESIGN §5: the paper's result is stable
+//! after two iterations).
+
+use super::anchors::{extract, PatchSpec, RawOutputs};
+use super::model_file::{self, ModelError, ModelHeader};
+use super::net::{NetConfig, Outputs, Stage2Net};
+use super::normalise_patch;
+use super::sort::{observed, sort_to_template};
+use crate::codebook::decode;
+use crate::family::{Assignment, Family};
+use crate::geometry::{warp_bilinear, Camera, GrayImage, Homography};
+use crate::pose::{marker_plane_points, solve_planar, PnpSolution};
+use burn::tensor::activation::softmax;
+use burn::tensor::{Device, Tensor, TensorData};
+use serde::Serialize;
+use std::path::Path;
+
+/// Anchors whose best symbol probability is below this are background (the reference's 0.3).
+pub const MIN_CONFIDENCE: f64 = 0.3;
+
+/// A loaded model, ready to run on patches and images.
+pub struct Stage2 {
+    net: Stage2Net,
+    pub config: NetConfig,
+    pub spec: PatchSpec,
+    pub header: ModelHeader,
+    family: Family,
+    device: Device,
+}
+
+/// One keypoint of a detected marker, in the family's canonical order.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DetectedKeypoint {
+    /// Index in the family's keypoint list.
+    pub index: usize,
+    /// Image pixels.
+    pub x: f64,
+    pub y: f64,
+    pub category: usize,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub symbol: Option<u8>,
+    pub confidence: f64,
+}
+
+/// A marker decoded from one ROI.
+#[derive(Debug, Clone, Serialize)]
+pub struct Stage2Result {
+    pub id: usize,
+    /// Clockwise angle in degrees by which the marker is turned relative to the ROI's order.
+    pub rotation_deg: f64,
+    pub corrected_errors: usize,
+    pub fixed_mismatches: usize,
+    /// The family's ROI points in the image, canonical order, from all keypoints.
+    pub corners: [[f64; 2]; 4],
+    pub keypoints: Vec<DetectedKeypoint>,
+    /// Template keypoints with no detection matched to them.
+    pub missing: usize,
+    /// Passes run (the second refines the first; a failed second pass keeps the first).
+    pub iterations: usize,
+    #[serde(skip)]
+    pub pose: Option<PnpSolution>,
+}
+
+impl Stage2 {
+    pub fn load(path: &Path, family: &Family) -> Result<Self, ModelError> {
+        let device = Device::flex();
+        let (net, header) = model_file::load(path, family, &device)?;
+        Ok(Self::new(net, header, family, device))
+    }
+
+    pub fn from_bytes(bytes: &[u8], name: &str, family: &Family) -> Result<Self, ModelError> {
+        let device = Device::flex();
+        let (net, header) = model_file::from_bytes(bytes, name, family, &device)?;
+        Ok(Self::new(net, header, family, device))
+    }
+
+    fn new(net: Stage2Net, header: ModelHeader, family: &Family, device: Device) -> Self {
+        let spec = PatchSpec {
+            size: header.net.patch as u32,
+            ..PatchSpec::default()
+        };
+        Self {
+            net,
+            config: header.net,
+            spec,
+            header,
+            family: family.clone(),
+            device,
+        }
+    }
+
+    /// Network outputs for patches of `spec.size`².
+    pub fn run_patches(&self, patches: &[GrayImage]) -> Vec<RawOutputs> {
+        let p = self.spec.size as usize;
+        let pixels: Vec<f32> = patches.iter().flat_map(normalise_patch).collect();
+        let x = Tensor::<4>::from_data(
+            TensorData::new(pixels, [patches.len(), 1, p, p]),
+            &self.device,
+        );
+        raw_outputs(self.net.forward(x), self.config.classes)
+    }
+
+    /// The patch a ROI (the family's ROI points 0–3 in the image, in order) warps to.
+    pub fn warp(&self, image: &GrayImage, roi: &[[f64; 2]; 4]) -> Option<(GrayImage, Homography)> {
+        let to_image = Homography::from_points(&self.spec.template_corners(), roi).ok()?;
+        let size = self.spec.size;
+        // Outside the image: mid-gray, which the per-patch normalisation maps to about zero.
+        Some((warp_bilinear(image, &to_image, size, size, 128), to_image))
+    }
+
+    /// Decodes the marker in `roi` with `iterations` passes (2 is the paper's setting); the pose
+    /// needs a camera and the marker's side in metres (the family's ROI side).
+    pub fn detect(
+        &self,
+        image: &GrayImage,
+        roi: &[[f64; 2]; 4],
+        iterations: usize,
+        camera: Option<(&Camera, f64)>,
+    ) -> Option<Stage2Result> {
+        let mut roi = *roi;
+        let mut result: Option<Stage2Result> = None;
+        for pass in 0..iterations.max(1) {
+            match self.pass(image, &roi) {
+                Some(mut r) => {
+                    r.iterations = pass + 1;
+                    roi = r.corners;
+                    result = Some(r);
+                }
+                None => break,
+            }
+        }
+        let mut result = result?;
+        if let Some((camera, side_m)) = camera {
+            let kps = self.family.keypoints();
+            let canonical: Vec<[f64; 2]> =
+                result.keypoints.iter().map(|k| kps[k.index].pos).collect();
+            let object = marker_plane_points(&self.family, side_m, &canonical);
+            let pixels: Vec<[f64; 2]> = result.keypoints.iter().map(|k| [k.x, k.y]).collect();
+            result.pose = solve_planar(camera, &object, &pixels).ok();
+        }
+        Some(result)
+    }
+
+    fn pass(&self, image: &GrayImage, roi: &[[f64; 2]; 4]) -> Option<Stage2Result> {
+        let (patch, to_image) = self.warp(image, roi)?;
+        let raw = self.run_patches(std::slice::from_ref(&patch)).pop()?;
+        self.decode_patch(&raw, &to_image)
+    }
+
+    /// Post-processing of one patch's outputs; `to_image` maps patch pixels to the image.
+    pub fn decode_patch(&self, raw: &RawOutputs, to_image: &Homography) -> Option<Stage2Result> {
+        let family = &self.family;
+        let found = extract(&self.spec, raw, MIN_CONFIDENCE);
+        let corners = raw.template_corners(&self.spec);
+        let sorted = sort_to_template(family, &found, &corners)?;
+        let read = observed(family, &sorted, &found);
+        let decoded = decode(family, &read, None)?;
+        let rotation = &family.rotations()[decoded.rotation];
+        let kps = family.keypoints();
+        let keypoints: Vec<DetectedKeypoint> = (0..kps.len())
+            .filter_map(|i| {
+                let slot = rotation.keypoint_perm[i];
+                let f = &found[sorted.slots[slot]?];
+                let category = read[slot]?;
+                let [x, y] = to_image.apply(f.pos);
+                Some(DetectedKeypoint {
+                    index: i,
+                    x,
+                    y,
+                    category,
+                    // Frame cells may be drawn with a symbol's category; only code keypoints
+                    // carry a symbol.
+                    symbol: matches!(kps[i].assignment, Assignment::Symbol(_))
+                        .then(|| family.category_symbol(category))
+                        .flatten(),
+                    confidence: f.confidence,
+                })
+            })
+            .collect();
+        let canonical: Vec<[f64; 2]> = keypoints.iter().map(|k| kps[k.index].pos).collect();
+        let pixels: Vec<[f64; 2]> = keypoints.iter().map(|k| [k.x, k.y]).collect();
+        let to_pixels = Homography::from_points(&canonical, &pixels).ok()?;
+        let roi = family.roi_points();
+        let corners = std::array::from_fn(|j| to_pixels.apply(roi[j]));
+        Some(Stage2Result {
+            id: decoded.id,
+            rotation_deg: rotation.angle_deg,
+            corrected_errors: decoded.corrected_errors,
+            fixed_mismatches: decoded.fixed_mismatches,
+            corners,
+            missing: family.regressed_keypoints().len() - keypoints.len(),
+            keypoints,
+            iterations: 1,
+            pose: None,
+        })
+    }
+}
+
+/// Batch outputs → per-patch plain numbers (class probabilities per anchor, offsets, template).
+pub fn raw_outputs(out: Outputs, classes: usize) -> Vec<RawOutputs> {
+    let [n, _, g, _] = out.logits.dims();
+    let a = g * g;
+    let probs = to_vec(softmax(out.logits, 1).permute([0, 2, 3, 1]));
+    let offsets = to_vec(out.offsets.permute([0, 2, 3, 1]));
+    // N × (x, y) × row × col → N × row × col × (x, y): flat anchor order TL, TR, BL, BR.
+    let template = to_vec(out.template.permute([0, 2, 3, 1]));
+    (0..n)
+        .map(|i| {
+            let t = &template[i * 8..(i + 1) * 8];
+            let at = |flat: usize| [t[flat * 2], t[flat * 2 + 1]];
+            RawOutputs {
+                probs: probs[i * a * classes..(i + 1) * a * classes].to_vec(),
+                classes,
+                offsets: offsets[i * a * 2..(i + 1) * a * 2]
+                    .chunks(2)
+                    .map(|c| [c[0], c[1]])
+                    .collect(),
+                template: [at(0), at(1), at(3), at(2)],
+            }
+        })
+        .collect()
+}
+
+fn to_vec<const D: usize>(t: Tensor<D>) -> Vec<f32> {
+    t.into_data()
+        .convert::<f32>()
+        .try_into_vec::<f32>()
+        .expect("float tensors read back as f32")
+}
+
+/// The template head's targets in the network's flat 2 × 2 order (TL, TR, BL, BR).
+pub fn template_flat(corners: &[[f32; 2]; 4]) -> [f32; 8] {
+    let order = [0, 1, 3, 2];
+    std::array::from_fn(|k| corners[order[k / 2]][k % 2])
+}

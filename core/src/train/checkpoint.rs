@@ -1,0 +1,90 @@
+//! One checkpoint file, rewritten atomically (temporary file, fsync, rename): a magic line, the
+//! run's state as JSON, the model in the model-file format (so it carries the family check), and
+//! the optimiser state (Adam moments) in burnpack. A kill at any moment leaves the previous
+//! checkpoint or the new one, never a mix.
+
+use super::validate::Metrics;
+use super::TrainConfig;
+use crate::detect::model_file;
+use crate::detect::net::{NetConfig, Stage2Net};
+use crate::family::Family;
+use burn::optim::ModuleOptimizer;
+use burn::tensor::{Bytes, Device};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+const MAGIC: &[u8] = b"TAGSMITH-CHECKPOINT\n";
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Meta {
+    /// Steps done; the data stream resumes at sample `step × batch`.
+    pub step: u64,
+    pub validation: Vec<(u64, Metrics)>,
+    pub wall_s: f64,
+    pub config: TrainConfig,
+}
+
+pub struct State {
+    pub net: Stage2Net,
+    pub optimiser: Bytes,
+    pub meta: Meta,
+}
+
+fn section(out: &mut Vec<u8>, bytes: &[u8]) {
+    out.extend_from_slice(&(bytes.len() as u64).to_le_bytes());
+    out.extend_from_slice(bytes);
+}
+
+pub fn save(
+    path: &Path,
+    family: &Family,
+    net: Stage2Net,
+    config: &NetConfig,
+    optim: &ModuleOptimizer,
+    meta: &Meta,
+) -> Result<(), String> {
+    let model = model_file::to_bytes(net, config, family, meta.step)?;
+    let optimiser = optim.into_bytes().map_err(|e| e.to_string())?;
+    let json = serde_json::to_vec(meta).map_err(|e| e.to_string())?;
+    let mut out = MAGIC.to_vec();
+    section(&mut out, &json);
+    section(&mut out, &model);
+    section(&mut out, &optimiser);
+    crate::io::write_atomic(path, &out).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+pub fn load(
+    path: &Path,
+    family: &Family,
+    config: &NetConfig,
+    device: &Device,
+) -> Result<State, String> {
+    let name = path.display().to_string();
+    let bytes = std::fs::read(path).map_err(|e| format!("{name}: {e}"))?;
+    let corrupt = || format!("{name}: not a Tagsmith checkpoint, or a damaged one");
+    let mut rest = bytes.strip_prefix(MAGIC).ok_or_else(corrupt)?;
+    let mut next = || -> Result<&[u8], String> {
+        let len = rest
+            .get(..8)
+            .map(|b| u64::from_le_bytes(b.try_into().expect("8 bytes")) as usize)
+            .ok_or_else(corrupt)?;
+        let body = rest.get(8..8 + len).ok_or_else(corrupt)?;
+        rest = &rest[8 + len..];
+        Ok(body)
+    };
+    let meta: Meta = serde_json::from_slice(next()?).map_err(|e| format!("{name}: {e}"))?;
+    let (net, header) =
+        model_file::from_bytes(next()?, &name, family, device).map_err(|e| e.to_string())?;
+    if header.net != *config {
+        return Err(format!(
+            "{name}: the checkpoint's network ({:?}) differs from the requested one ({:?})",
+            header.net, config
+        ));
+    }
+    let optimiser = Bytes::from_bytes_vec(next()?.to_vec());
+    Ok(State {
+        net,
+        optimiser,
+        meta,
+    })
+}

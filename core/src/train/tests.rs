@@ -1,0 +1,173 @@
+use super::data::make_sample;
+use super::loss::{losses, Batch};
+use super::{train, Event, TrainConfig};
+use crate::builtin;
+use crate::detect::anchors::PatchSpec;
+use crate::detect::net::NetConfig;
+use crate::detect::stage2::Stage2;
+use crate::synth::image_seed;
+use burn::optim::{AdamConfig, GradientsParams};
+use burn::tensor::Device;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// A small network learns a handful of fixed patches: the loss falls tenfold within seconds, so
+/// the targets, losses and gradients fit together.
+#[test]
+fn a_tiny_model_overfits_a_few_patches() {
+    let family = builtin::get("apriltag-36h11").unwrap().unwrap();
+    let spec = PatchSpec::for_family(&family);
+    let samples: Vec<_> = (0..2)
+        .map(|i| make_sample(&family, &spec, image_seed(7, i)).unwrap())
+        .collect();
+    let device = Device::flex().autodiff();
+    device.seed(3);
+    let config = NetConfig {
+        classes: 3,
+        width: 8,
+        patch: spec.size as usize,
+    };
+    let mut net = config.init(&device);
+    let mut optim = AdamConfig::new().init();
+    let batch = Batch::new(&samples, config.classes, spec.size as usize, &device);
+    let mut first = None;
+    let mut last = f32::MAX;
+    let mut steps = 0;
+    // Stops as soon as the loss is a tenth of the first: the test takes seconds.
+    while steps < 600 && first.is_none_or(|f: f32| last >= f / 10.0) {
+        let (loss, terms) = losses(net.forward(batch.input.clone()), &batch);
+        first.get_or_insert(terms.total);
+        last = terms.total;
+        let grads = GradientsParams::from_grads(loss.backward(), &net);
+        net = optim.step(5e-3, net, grads);
+        steps += 1;
+    }
+    let first = first.unwrap();
+    assert!(
+        last < first / 10.0,
+        "loss {first} → {last} in {steps} steps"
+    );
+}
+
+fn tiny(steps: u64) -> TrainConfig {
+    TrainConfig {
+        steps,
+        batch: 2,
+        width: 8,
+        checkpoint_every: 2,
+        validate_every: 2,
+        validation_patches: 2,
+        ..TrainConfig::default()
+    }
+}
+
+/// A run stopped after a checkpoint and resumed ends with the same weights as a run that was
+/// never interrupted, and its model file loads for its family only.
+#[test]
+fn training_resumes_from_its_checkpoint() {
+    let family = builtin::get("apriltag-16h5").unwrap().unwrap();
+    let straight = tempfile::tempdir().unwrap();
+    let never = AtomicBool::new(false);
+    let report = train(
+        &family,
+        &tiny(4),
+        straight.path(),
+        false,
+        &never,
+        &mut |_| {},
+    )
+    .unwrap();
+    assert_eq!(report.steps, 4);
+    assert_eq!(report.validation.len(), 2);
+
+    let interrupted = tempfile::tempdir().unwrap();
+    let stop = AtomicBool::new(false);
+    let mut events = Vec::new();
+    train(
+        &family,
+        &tiny(4),
+        interrupted.path(),
+        false,
+        &stop,
+        &mut |e| {
+            if matches!(e, Event::Checkpointed { step: 2 }) {
+                stop.store(true, Ordering::Relaxed);
+            }
+            events.push(e);
+        },
+    )
+    .unwrap();
+    assert!(events
+        .iter()
+        .any(|e| matches!(e, Event::Checkpointed { step: 2 })));
+    assert!(!events
+        .iter()
+        .any(|e| matches!(e, Event::Step { step: 3, .. })));
+    let resumed = train(
+        &family,
+        &tiny(4),
+        interrupted.path(),
+        true,
+        &never,
+        &mut |_| {},
+    )
+    .unwrap();
+    assert_eq!(resumed.resumed_from, Some(2));
+    assert_eq!(resumed.steps, 4);
+
+    let a = std::fs::read(straight.path().join("model.bin")).unwrap();
+    let b = std::fs::read(interrupted.path().join("model.bin")).unwrap();
+    let again = tempfile::tempdir().unwrap();
+    train(&family, &tiny(4), again.path(), false, &never, &mut |_| {}).unwrap();
+    let c = std::fs::read(again.path().join("model.bin")).unwrap();
+    // Threaded reductions make runs equal to rounding, not bit for bit: compare outputs.
+    let spec = PatchSpec::for_family(&family);
+    let patch = make_sample(&family, &spec, 99).unwrap().image;
+    let outputs = |bytes: &[u8]| {
+        Stage2::from_bytes(bytes, "model.bin", &family)
+            .unwrap()
+            .run_patches(std::slice::from_ref(&patch))
+            .pop()
+            .unwrap()
+    };
+    let (oa, ob, oc) = (outputs(&a), outputs(&b), outputs(&c));
+    let diff = |x: &crate::detect::anchors::RawOutputs, y: &crate::detect::anchors::RawOutputs| {
+        x.offsets
+            .iter()
+            .flatten()
+            .zip(y.offsets.iter().flatten())
+            .map(|(p, q)| (p - q).abs())
+            .fold(0.0f32, f32::max)
+    };
+    eprintln!(
+        "straight vs straight {}, straight vs resumed {}",
+        diff(&oa, &oc),
+        diff(&oa, &ob)
+    );
+    assert!(
+        diff(&oa, &ob) < 1e-3,
+        "resumed weights differ from uninterrupted ones"
+    );
+    Stage2::from_bytes(&a, "model.bin", &family).unwrap();
+    let other = builtin::get("apriltag-36h11").unwrap().unwrap();
+    let err = Stage2::from_bytes(&a, "model.bin", &other)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        err.contains("trained for family \"apriltag-16h5\""),
+        "{err}"
+    );
+    let mut damaged = a.clone();
+    let last = damaged.len() - 10;
+    damaged[last] ^= 0x40;
+    let err = Stage2::from_bytes(&damaged, "model.bin", &family)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(err.contains("corrupt"), "{err}");
+    let err = Stage2::from_bytes(b"PNG", "x.bin", &family)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(err.contains("not a Tagsmith stage-2 model"), "{err}");
+}
