@@ -4,7 +4,7 @@
 use super::files::{user_families, FileAccess, OpenedFile};
 use super::Studio;
 use std::path::PathBuf;
-use tagsmith::family::FamilySpec;
+use tagsmith::family::{Family, FamilySpec};
 
 #[derive(Debug, Clone, PartialEq)]
 pub enum Origin {
@@ -22,6 +22,21 @@ pub enum Origin {
 pub struct Entry {
     pub spec: FamilySpec,
     pub origin: Origin,
+    /// The code's alphabet size and length, kept from loading so that the designer can offer
+    /// matching codebooks without validating every family each frame.
+    pub q: usize,
+    pub code_len: usize,
+}
+
+impl Entry {
+    fn new(family: &Family, origin: Origin) -> Self {
+        Self {
+            spec: family.spec().clone(),
+            origin,
+            q: family.q(),
+            code_len: family.code_len(),
+        }
+    }
 }
 
 #[derive(Default)]
@@ -42,19 +57,16 @@ impl Library {
             .collect();
         for name in tagsmith::builtin::names() {
             if let Some(Ok(f)) = tagsmith::builtin::get(name) {
-                self.entries.push(Entry {
-                    spec: f.spec().clone(),
-                    origin: Origin::Builtin,
-                });
+                self.entries.push(Entry::new(&f, Origin::Builtin));
             }
         }
         let mut problems = Vec::new();
         for file in user_families(files) {
             match parse(&file) {
-                Ok(spec) => self.entries.push(Entry {
-                    spec,
-                    origin: Origin::UserFolder(file.path.clone().unwrap_or_default()),
-                }),
+                Ok(family) => self.entries.push(Entry::new(
+                    &family,
+                    Origin::UserFolder(file.path.clone().unwrap_or_default()),
+                )),
                 Err(e) => problems.push(e),
             }
         }
@@ -75,18 +87,18 @@ impl Library {
 
     /// Adds an opened file if it is a valid family; the error names the file and the field.
     pub fn add_opened(&mut self, file: &OpenedFile) -> Result<FamilySpec, String> {
-        let spec = parse(file)?;
-        let entry = Entry {
-            spec: spec.clone(),
-            origin: Origin::Opened {
+        let family = parse(file)?;
+        let entry = Entry::new(
+            &family,
+            Origin::Opened {
                 name: file.name.clone(),
                 path: file.path.clone(),
             },
-        };
+        );
         self.entries.retain(|e| !same_file(e, &entry));
         self.entries.push(entry);
         self.selected = Some(self.entries.len() - 1);
-        Ok(spec)
+        Ok(family.spec().clone())
     }
 }
 
@@ -112,12 +124,10 @@ fn same_file(a: &Entry, b: &Entry) -> bool {
 }
 
 /// A family file through the core's loader: every problem as `file: json.path: message`.
-fn parse(file: &OpenedFile) -> Result<FamilySpec, String> {
+fn parse(file: &OpenedFile) -> Result<Family, String> {
     let text = std::str::from_utf8(&file.bytes)
         .map_err(|_| format!("{}: not a text (UTF-8) file", file.name))?;
-    tagsmith::family::from_json_str(text)
-        .map(|f| f.spec().clone())
-        .map_err(|e| e.in_file(&file.name).to_string())
+    tagsmith::family::from_json_str(text).map_err(|e| e.in_file(&file.name).to_string())
 }
 
 pub fn show(studio: &mut Studio, ui: &mut egui::Ui) {

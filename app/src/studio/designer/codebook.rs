@@ -98,13 +98,8 @@ pub(super) fn show(studio: &mut Studio, ui: &mut Ui) {
                 .library
                 .entries
                 .iter()
-                .filter_map(|e| {
-                    let other = Family::from_spec(e.spec.clone()).ok()?;
-                    (other.q() == f.q()
-                        && other.code_len() == f.code_len()
-                        && e.spec.name != spec.name)
-                        .then(|| (e.spec.name.clone(), e.spec.codebook.clone()))
-                })
+                .filter(|e| e.q == f.q() && e.code_len == f.code_len() && e.spec.name != spec.name)
+                .map(|e| (e.spec.name.clone(), e.spec.codebook.clone()))
                 .collect()
         })
         .unwrap_or_default();
