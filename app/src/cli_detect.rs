@@ -38,6 +38,9 @@ pub struct TrainArgs {
     /// Channels of the network's widest layers.
     #[arg(long, default_value_t = TrainConfig::default().width)]
     pub width: usize,
+    /// Adam's learning rate (it falls to a tenth over the last quarter of the steps).
+    #[arg(long, default_value_t = TrainConfig::default().learning_rate)]
+    pub learning_rate: f64,
     #[arg(long, default_value_t = TrainConfig::default().seed)]
     pub seed: u64,
     #[arg(long, default_value_t = TrainConfig::default().checkpoint_every)]
@@ -88,16 +91,18 @@ pub fn train(a: TrainArgs) -> Result<()> {
         || a.width < 8
         || a.checkpoint_every == 0
         || a.validate_every == 0
+        || !(a.learning_rate > 0.0 && a.learning_rate.is_finite())
     {
         return Err(bad(anyhow!(
-            "--steps, --batch, --checkpoint-every and --validate-every must be at least 1 and \
-             --width at least 8"
+            "--steps, --batch, --checkpoint-every and --validate-every must be at least 1, \
+             --width at least 8 and --learning-rate a positive number"
         )));
     }
     let config = TrainConfig {
         steps: a.steps,
         batch: a.batch,
         width: a.width,
+        learning_rate: a.learning_rate,
         seed: a.seed,
         checkpoint_every: a.checkpoint_every,
         validate_every: a.validate_every,
@@ -168,11 +173,12 @@ pub fn train(a: TrainArgs) -> Result<()> {
             bar.set_message(message);
         }
         Event::Validated { step, metrics } => say(format!(
-            "step {step}: keypoint recall {:.2} %, symbol accuracy {:.2} %, ID accuracy {:.1} %, \
-             keypoint error RMS {:.2} px (median {:.2})",
+            "step {step}: keypoint recall {:.2} %, symbol accuracy {:.2} %, ID accuracy {:.1} % \
+             (wrong {:.1} %), keypoint error RMS {:.2} px (median {:.2})",
             100.0 * metrics.keypoint_recall,
             100.0 * metrics.symbol_accuracy,
             100.0 * metrics.id_accuracy,
+            100.0 * metrics.wrong_id_rate,
             metrics.keypoint_rms_px,
             metrics.keypoint_median_px
         )),

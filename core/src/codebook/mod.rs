@@ -7,7 +7,7 @@ pub mod import;
 pub mod opencv;
 pub mod packed;
 
-pub use decode::{decode, Decoded};
+pub use decode::{decode, decode_soft, Decoded};
 pub use generate::{generate, GenerateParams, GenerateReport, Order};
 
 use crate::family::spec::{CodeEncoding, CodebookSpec};

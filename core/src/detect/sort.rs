@@ -122,19 +122,40 @@ pub fn slot_categories(family: &Family) -> Vec<Vec<usize>> {
 /// cell is read as the more likely of the symbols even when the network finds it closer to the
 /// frame's look.
 pub fn observed(family: &Family, sorted: &Sorted, found: &[Found]) -> Vec<Option<usize>> {
+    read_slots(family, sorted, found).0
+}
+
+/// [`observed`] and, per slot, the read category's share of the votes of the categories the slot
+/// admits (0 where nothing matched): the reliability [`crate::codebook::decode_soft`] erases by.
+pub fn read_slots(
+    family: &Family,
+    sorted: &Sorted,
+    found: &[Found],
+) -> (Vec<Option<usize>>, Vec<f64>) {
     let admitted = slot_categories(family);
     sorted
         .slots
         .iter()
         .zip(&admitted)
         .map(|(s, allowed)| {
-            s.map(|f| {
-                allowed
-                    .iter()
-                    .copied()
-                    .max_by(|&a, &b| found[f].votes[a].total_cmp(&found[f].votes[b]))
-                    .unwrap_or(found[f].category)
-            })
+            let Some(f) = *s else {
+                return (None, 0.0);
+            };
+            let votes = &found[f].votes;
+            let Some(best) = allowed
+                .iter()
+                .copied()
+                .max_by(|&a, &b| votes[a].total_cmp(&votes[b]))
+            else {
+                return (Some(found[f].category), 0.0);
+            };
+            let total: f64 = allowed.iter().map(|&c| votes[c]).sum();
+            let share = if total > 0.0 {
+                votes[best] / total
+            } else {
+                0.0
+            };
+            (Some(best), share)
         })
-        .collect()
+        .unzip()
 }

@@ -7,8 +7,8 @@ use super::anchors::{extract, PatchSpec, RawOutputs};
 use super::model_file::{self, ModelError, ModelHeader};
 use super::net::{NetConfig, Outputs, Stage2Net};
 use super::normalise_patch;
-use super::sort::{observed, sort_to_template};
-use crate::codebook::decode;
+use super::sort::{read_slots, sort_to_template};
+use crate::codebook::decode_soft;
 use crate::family::{Assignment, Family};
 use crate::geometry::{warp_bilinear, Camera, GrayImage, Homography};
 use crate::pose::{marker_plane_points, solve_planar, PnpSolution};
@@ -155,8 +155,8 @@ impl Stage2 {
         let found = extract(&self.spec, raw, MIN_CONFIDENCE);
         let corners = raw.template_corners(&self.spec);
         let sorted = sort_to_template(family, &found, &corners)?;
-        let read = observed(family, &sorted, &found);
-        let decoded = decode(family, &read, None)?;
+        let (read, reliability) = read_slots(family, &sorted, &found);
+        let decoded = decode_soft(family, &read, &reliability, None)?;
         let rotation = &family.rotations()[decoded.rotation];
         let kps = family.keypoints();
         let keypoints: Vec<DetectedKeypoint> = (0..kps.len())

@@ -1,7 +1,7 @@
 use super::anchors::{encode, extract, PatchSpec, RawOutputs};
-use super::sort::{observed, sort_to_template};
+use super::sort::{observed, read_slots, sort_to_template};
 use crate::builtin;
-use crate::codebook::decode;
+use crate::codebook::{decode, decode_soft};
 use crate::synth::{synthesize, KeypointTruth, Mode, SynthConfig};
 
 /// Turns patch coordinates by 90° clockwise (y down) `quarter` times, as rotating the patch's
@@ -65,6 +65,21 @@ fn targets_decode_to_the_ground_truth() {
             let decoded = decode(&family, &read, Some(0)).unwrap();
             assert_eq!(decoded.id, truth.id, "{name} seed {seed}");
             assert_eq!(decoded.corrected_errors, 0);
+            // A network that is sure of every cell gives every read slot full reliability, and
+            // the soft decoder agrees with the hard one.
+            let (soft_read, reliability) = read_slots(&family, &sorted, &found);
+            assert_eq!(soft_read, read);
+            for (r, rel) in read.iter().zip(&reliability) {
+                assert_eq!(
+                    *rel,
+                    if r.is_some() { 1.0 } else { 0.0 },
+                    "{name} seed {seed}"
+                );
+            }
+            assert_eq!(
+                decode_soft(&family, &read, &reliability, Some(0)),
+                Some(decoded)
+            );
             // Canonical keypoint i is seen at slot perm[i].
             let perm = &family.rotations()[decoded.rotation].keypoint_perm;
             for (i, k) in keypoints.iter().enumerate() {
@@ -92,4 +107,43 @@ fn patch_sizes_keep_keypoints_two_anchors_apart() {
         let expected = if family.is_grid() { 128 } else { 256 };
         assert_eq!(spec.size, expected, "{name}");
     }
+}
+
+/// The reliability the soft decoder erases by is the read category's share of the votes of the
+/// categories its slot admits: an AprilTag-XO data cell voted 0.5 frame, 0.3 X, 0.2 O reads X
+/// with 0.6 (the frame look is not a symbol's).
+#[test]
+fn reliability_is_the_share_among_admitted_categories() {
+    use super::anchors::Found;
+    use super::sort::Sorted;
+    let family = builtin::get("apriltag-xo-36h11").unwrap().unwrap();
+    let code_slot = family.code_keypoints()[0];
+    let mut slots = vec![None; family.keypoints().len()];
+    slots[code_slot] = Some(0);
+    let sorted = Sorted {
+        slots,
+        to_patch: crate::geometry::Homography(nalgebra::Matrix3::identity()),
+    };
+    let (zero, one) = (family.symbol_category(0), family.symbol_category(1));
+    let frame = (0..family.categories().len())
+        .find(|&c| c != zero && c != one)
+        .unwrap();
+    let mut votes = vec![0.0; family.categories().len()];
+    votes[frame] = 0.5;
+    votes[zero] = 0.3;
+    votes[one] = 0.2;
+    let found = [Found {
+        pos: [0.0, 0.0],
+        category: frame,
+        confidence: 0.5,
+        votes,
+    }];
+    let (read, reliability) = read_slots(&family, &sorted, &found);
+    assert_eq!(read[code_slot], Some(zero));
+    assert!((reliability[code_slot] - 0.6).abs() < 1e-12);
+    assert_eq!(read.iter().flatten().count(), 1);
+    assert!(reliability
+        .iter()
+        .enumerate()
+        .all(|(i, &r)| i == code_slot || r == 0.0));
 }

@@ -1,5 +1,5 @@
 //! Training the stage-2 keypoint network (DESIGN §6): burn with autodiff on the `flex` CPU
-//! backend, Adam at lr 3e-4, patches synthesised by worker threads ahead of the optimiser,
+//! backend, Adam at lr 1e-3, patches synthesised by worker threads ahead of the optimiser,
 //! periodic validation on a fixed seeded set, atomic checkpoints, resume, and a JSON report.
 //!
 //! Progress is a stream of [`Event`]s; the CLI draws them as a progress bar.
@@ -48,9 +48,10 @@ pub struct TrainConfig {
 impl Default for TrainConfig {
     fn default() -> Self {
         Self {
-            steps: 7000,
+            // The shipped models' settings: about 40 minutes on two CPU cores (BENCHMARKS.md).
+            steps: 10_500,
             batch: 16,
-            learning_rate: 3e-4,
+            learning_rate: 1e-3,
             decay_fraction: 0.25,
             width: 32,
             seed: 1,
@@ -194,25 +195,6 @@ pub fn train(
     let started = Instant::now();
     let first_step = step;
     let mut last = LossTerms::default();
-    let save = |net: &Stage2Net,
-                optim: &burn::optim::ModuleOptimizer,
-                step: u64,
-                history: &[(u64, Metrics)],
-                wall: f64| {
-        checkpoint::save(
-            &dir.checkpoint(),
-            family,
-            net.clone(),
-            &net_config,
-            optim,
-            &checkpoint::Meta {
-                step,
-                validation: history.to_vec(),
-                wall_s: wall,
-                config: config.clone(),
-            },
-        )
-    };
     while step < config.steps && !stop.load(Ordering::Relaxed) {
         let samples = loader.batch(config.batch)?;
         let batch = Batch::new(&samples, net_config.classes, spec.size as usize, &device);
@@ -233,26 +215,26 @@ pub fn train(
             history.push((step, metrics));
             on_event(Event::Validated { step, metrics });
         }
-        if step.is_multiple_of(config.checkpoint_every) || step == config.steps {
-            save(
-                &net,
+        // A stopped run keeps the step it just made.
+        if step.is_multiple_of(config.checkpoint_every)
+            || step == config.steps
+            || stop.load(Ordering::Relaxed)
+        {
+            checkpoint::save(
+                &dir.checkpoint(),
+                family,
+                net.clone(),
+                &net_config,
                 &optim,
-                step,
-                &history,
-                earlier_wall + started.elapsed().as_secs_f64(),
+                &checkpoint::Meta {
+                    step,
+                    validation: history.clone(),
+                    wall_s: earlier_wall + started.elapsed().as_secs_f64(),
+                    config: config.clone(),
+                },
             )?;
             on_event(Event::Checkpointed { step });
         }
-    }
-    if step < config.steps {
-        save(
-            &net,
-            &optim,
-            step,
-            &history,
-            earlier_wall + started.elapsed().as_secs_f64(),
-        )?;
-        on_event(Event::Checkpointed { step });
     }
     let wall = started.elapsed().as_secs_f64();
     let bytes = model_file::to_bytes(net.valid(), &net_config, family, step)?;

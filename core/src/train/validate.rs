@@ -2,9 +2,9 @@
 //! compare across runs): keypoint recall, symbol accuracy, ID accuracy and keypoint error.
 
 use super::data::{make_sample, PatchSample};
-use crate::codebook::decode;
+use crate::codebook::decode_soft;
 use crate::detect::anchors::{extract, PatchSpec, RawOutputs};
-use crate::detect::sort::{observed, sort_to_template};
+use crate::detect::sort::{read_slots, sort_to_template};
 use crate::detect::stage2::MIN_CONFIDENCE;
 use crate::family::Family;
 use crate::synth::image_seed;
@@ -23,6 +23,9 @@ pub struct Metrics {
     pub symbol_accuracy: f64,
     /// Patches decoded to the right ID.
     pub id_accuracy: f64,
+    /// Patches decoded to a wrong ID (the rest of the misses decode to nothing).
+    #[serde(default)]
+    pub wrong_id_rate: f64,
     /// Root-mean-square distance of found keypoints to the truth, patch pixels.
     pub keypoint_rms_px: f64,
     /// Median of that per-patch.
@@ -46,8 +49,8 @@ pub fn score(
     set: &[PatchSample],
     raw: &[RawOutputs],
 ) -> Metrics {
-    let (mut visible, mut recalled, mut right_symbol, mut right_id) =
-        (0usize, 0usize, 0usize, 0usize);
+    let (mut visible, mut recalled, mut right_symbol, mut right_id, mut wrong_id) =
+        (0usize, 0usize, 0usize, 0usize, 0usize);
     let mut sq = 0.0;
     let mut errors = Vec::new();
     for (sample, raw) in set.iter().zip(raw) {
@@ -61,9 +64,11 @@ pub fn score(
         let Some(sorted) = sort_to_template(family, &found, &raw.template_corners(spec)) else {
             continue;
         };
-        let read = observed(family, &sorted, &found);
-        if decode(family, &read, None).is_some_and(|d| d.id == truth.id) {
-            right_id += 1;
+        let (read, reliability) = read_slots(family, &sorted, &found);
+        match decode_soft(family, &read, &reliability, None) {
+            Some(d) if d.id == truth.id => right_id += 1,
+            Some(_) => wrong_id += 1,
+            None => {}
         }
         // Slots are in the order the marker is seen; the truth is canonical. Pair each truth
         // keypoint with the found keypoint nearest to it among the sorted ones.
@@ -97,6 +102,7 @@ pub fn score(
         keypoint_recall: ratio(recalled, visible),
         symbol_accuracy: ratio(right_symbol, recalled),
         id_accuracy: ratio(right_id, set.len()),
+        wrong_id_rate: ratio(wrong_id, set.len()),
         keypoint_rms_px: if recalled == 0 {
             f64::NAN
         } else {
