@@ -1,5 +1,6 @@
 //! Decoding: the categories read at the keypoints → (ID, rotation, corrected errors).
 
+use super::Codebook;
 use crate::family::{Assignment, Family};
 
 /// A decoded marker.
@@ -86,12 +87,7 @@ fn decode_with(
             packing.pack_into(symbols.iter().copied(), &mut packed, &mut known);
             let nearest = match (unknown, codebook.lookup(&packed)) {
                 (0, Some(id)) => Some((0, id)),
-                _ => (0..codebook.len())
-                    .map(|id| {
-                        let d = packing.distance_known(&packed, codebook.packed(id), &known);
-                        (d as usize + unknown, id)
-                    })
-                    .min(),
+                _ => nearest_code(codebook, &packed, &known).map(|(d, id)| (d + unknown, id)),
             };
             let Some((errors, id)) = nearest else {
                 continue;
@@ -122,13 +118,7 @@ fn decode_with(
             }
             packing.pack_into(trial.iter().copied(), &mut packed, &mut known);
             let erasures = unknown + erased;
-            let Some((errors, id)) = (0..codebook.len())
-                .map(|id| {
-                    let d = packing.distance_known(&packed, codebook.packed(id), &known);
-                    (d as usize, id)
-                })
-                .min()
-            else {
+            let Some((errors, id)) = nearest_code(codebook, &packed, &known) else {
                 break;
             };
             let cost = 2 * errors + erasures;
@@ -156,6 +146,18 @@ fn decode_with(
     best.map(|(_, d)| d).filter(|d| {
         (reliability.is_some() || d.corrected_errors <= limit) && d.fixed_mismatches <= limit.max(1)
     })
+}
+
+/// The code nearest to `packed` over its `known` symbols: (distance, ID), None for an empty
+/// codebook.
+fn nearest_code(codebook: &Codebook, packed: &[u64], known: &[u64]) -> Option<(usize, usize)> {
+    let packing = codebook.packing();
+    (0..codebook.len())
+        .map(|id| {
+            let d = packing.distance_known(packed, codebook.packed(id), known);
+            (d as usize, id)
+        })
+        .min()
 }
 
 fn keep_better(
