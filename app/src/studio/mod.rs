@@ -363,37 +363,26 @@ impl Studio {
             .map(|d| d.spec().name.clone())
             .unwrap_or_default();
         let next = pending.spec.name.clone();
-        let mut choice = None;
-        egui::Modal::new(egui::Id::unique("replace-design")).show(ctx, |ui| {
-            ui.heading("Unsaved changes");
-            ui.label(format!(
-                "{name} has unsaved changes. Open {next} and discard them?"
-            ));
-            ui.horizontal(|ui| {
-                if ui.button("Save, then open").clicked() {
-                    choice = Some(1);
-                }
-                if ui.button("Discard changes and open").clicked() {
-                    choice = Some(2);
-                }
-                if ui.button("Cancel").clicked() {
-                    choice = Some(0);
-                }
-            });
-        });
+        let choice = unsaved_prompt(
+            ctx,
+            "replace-design",
+            "Unsaved changes",
+            &format!("{name} has unsaved changes. Open {next} and discard them?"),
+            ["Save, then open", "Discard changes and open", "Cancel"],
+        );
         match choice {
-            Some(1) => {
+            Some(Unsaved::SaveFirst) => {
                 self.save();
                 if !self.is_dirty() {
                     let p = self.pending_replace.take().expect("pending");
                     self.replace_design(p.spec, p.path, p.saved);
                 }
             }
-            Some(2) => {
+            Some(Unsaved::Discard) => {
                 let p = self.pending_replace.take().expect("pending");
                 self.replace_design(p.spec, p.path, p.saved);
             }
-            Some(_) => self.pending_replace = None,
+            Some(Unsaved::Cancel) => self.pending_replace = None,
             None => {}
         }
     }
@@ -410,33 +399,22 @@ impl Studio {
         if !self.quit_prompt {
             return;
         }
-        let mut choice = None;
-        egui::Modal::new(egui::Id::unique("quit")).show(ctx, |ui| {
-            ui.heading("Quit with unsaved changes?");
-            ui.label(
-                "The design is also kept for the next start, but it is not in a family file yet.",
-            );
-            ui.horizontal(|ui| {
-                if ui.button("Save and quit").clicked() {
-                    choice = Some(1);
-                }
-                if ui.button("Quit without saving").clicked() {
-                    choice = Some(2);
-                }
-                if ui.button("Keep editing").clicked() {
-                    choice = Some(0);
-                }
-            });
-        });
+        let choice = unsaved_prompt(
+            ctx,
+            "quit",
+            "Quit with unsaved changes?",
+            "The design is also kept for the next start, but it is not in a family file yet.",
+            ["Save and quit", "Quit without saving", "Keep editing"],
+        );
         match choice {
-            Some(1) => {
+            Some(Unsaved::SaveFirst) => {
                 self.save();
                 if !self.is_dirty() {
                     self.quit(ctx);
                 }
             }
-            Some(2) => self.quit(ctx),
-            Some(_) => self.quit_prompt = false,
+            Some(Unsaved::Discard) => self.quit(ctx),
+            Some(Unsaved::Cancel) => self.quit_prompt = false,
             None => {}
         }
     }
@@ -446,6 +424,41 @@ impl Studio {
         self.quit_confirmed = true;
         ctx.send_viewport_cmd(egui::ViewportCommand::Close);
     }
+}
+
+/// The answer to a prompt about unsaved work, in the order its buttons are shown.
+enum Unsaved {
+    SaveFirst,
+    Discard,
+    Cancel,
+}
+
+/// A modal asking what to do with unsaved work before going on; `labels` name the three answers
+/// in [`Unsaved`]'s order. None while the user has not answered.
+fn unsaved_prompt(
+    ctx: &egui::Context,
+    id: &str,
+    heading: &str,
+    text: &str,
+    labels: [&str; 3],
+) -> Option<Unsaved> {
+    let mut choice = None;
+    egui::Modal::new(egui::Id::unique(id)).show(ctx, |ui| {
+        ui.heading(heading);
+        ui.label(text);
+        ui.horizontal(|ui| {
+            for (label, answer) in
+                labels
+                    .into_iter()
+                    .zip([Unsaved::SaveFirst, Unsaved::Discard, Unsaved::Cancel])
+            {
+                if ui.button(label).clicked() {
+                    choice = Some(answer);
+                }
+            }
+        });
+    });
+    choice
 }
 
 /// The eframe application around [`Studio`], with persistence.

@@ -267,18 +267,17 @@ fn primitive_editor(ui: &mut Ui, p: &mut Primitive) -> bool {
     let num = |ui: &mut Ui, label: &str, v: &mut f64, lo: f64, hi: f64| {
         number(ui, label, v, lo..=hi, 0.01).changed()
     };
-    match &mut p.shape {
+    // Every shape but a path is placed by a centre, edited after its own fields.
+    let centre = match &mut p.shape {
         Shape::Square { size, x, y } => {
             ui.label("square");
             changed |= num(ui, "size", size, 0.01, 4.0);
-            changed |= num(ui, "x", x, -2.0, 2.0);
-            changed |= num(ui, "y", y, -2.0, 2.0);
+            Some((x, y))
         }
         Shape::Dot { radius, x, y } => {
             ui.label("dot");
             changed |= num(ui, "radius", radius, 0.01, 2.0);
-            changed |= num(ui, "x", x, -2.0, 2.0);
-            changed |= num(ui, "y", y, -2.0, 2.0);
+            Some((x, y))
         }
         Shape::Ring {
             radius,
@@ -289,21 +288,18 @@ fn primitive_editor(ui: &mut Ui, p: &mut Primitive) -> bool {
             ui.label("ring");
             changed |= num(ui, "radius", radius, 0.01, 2.0);
             changed |= num(ui, "ring width", width, 0.005, 2.0);
-            changed |= num(ui, "x", x, -2.0, 2.0);
-            changed |= num(ui, "y", y, -2.0, 2.0);
+            Some((x, y))
         }
         Shape::Cross { size, width, x, y } => {
             ui.label("cross");
             changed |= num(ui, "size", size, 0.01, 4.0);
             changed |= num(ui, "arm width", width, 0.005, 2.0);
-            changed |= num(ui, "x", x, -2.0, 2.0);
-            changed |= num(ui, "y", y, -2.0, 2.0);
+            Some((x, y))
         }
         Shape::Triangle { size, x, y } => {
             ui.label("triangle");
             changed |= num(ui, "size", size, 0.01, 4.0);
-            changed |= num(ui, "x", x, -2.0, 2.0);
-            changed |= num(ui, "y", y, -2.0, 2.0);
+            Some((x, y))
         }
         Shape::Bar {
             width,
@@ -316,12 +312,16 @@ fn primitive_editor(ui: &mut Ui, p: &mut Primitive) -> bool {
             changed |= num(ui, "bar width", width, 0.005, 4.0);
             changed |= num(ui, "bar height", height, 0.005, 4.0);
             changed |= number(ui, "angle (deg)", angle_deg, -360.0..=360.0, 1.0).changed();
-            changed |= num(ui, "x", x, -2.0, 2.0);
-            changed |= num(ui, "y", y, -2.0, 2.0);
+            Some((x, y))
         }
         Shape::Path { d } => {
             changed |= text_field(ui, "SVG path (cell units)", d).changed();
+            None
         }
+    };
+    if let Some((x, y)) = centre {
+        changed |= num(ui, "x", x, -2.0, 2.0);
+        changed |= num(ui, "y", y, -2.0, 2.0);
     }
     changed |= colour_option(ui, "fill", &mut p.fill, "#000000");
     changed |= colour_option(ui, "stroke", &mut p.stroke, "#000000");

@@ -149,25 +149,23 @@ pub fn show(studio: &mut Studio, ui: &mut Ui, ctx: &egui::Context) {
     egui::CentralPanel::default_margins().show(ui, |ui| marker::show(studio, ui, ctx));
 }
 
+/// A designer section's body.
+type Section = fn(&mut Studio, &mut Ui);
+
 fn controls(studio: &mut Studio, ui: &mut Ui) {
-    egui::CollapsingHeader::new("Identity")
-        .default_open(true)
-        .show(ui, |ui| identity::show(studio, ui));
-    egui::CollapsingHeader::new("Layout")
-        .default_open(true)
-        .show(ui, |ui| layout::show(studio, ui));
-    egui::CollapsingHeader::new("Pattern categories")
-        .default_open(true)
-        .show(ui, |ui| categories::show(studio, ui));
-    egui::CollapsingHeader::new("Keypoints")
-        .default_open(true)
-        .show(ui, |ui| keypoints::show(studio, ui));
-    egui::CollapsingHeader::new("ROI")
-        .default_open(true)
-        .show(ui, |ui| roi::show(studio, ui));
-    egui::CollapsingHeader::new("Codebook")
-        .default_open(true)
-        .show(ui, |ui| codebook::show(studio, ui));
+    let sections: [(&str, Section); 6] = [
+        ("Identity", identity::show),
+        ("Layout", layout::show),
+        ("Pattern categories", categories::show),
+        ("Keypoints", keypoints::show),
+        ("ROI", roi::show),
+        ("Codebook", codebook::show),
+    ];
+    for (title, show) in sections {
+        egui::CollapsingHeader::new(title)
+            .default_open(true)
+            .show(ui, |ui| show(studio, ui));
+    }
     let design = studio.design.as_ref().expect("a design");
     let other: Vec<String> = design.problems_at(&["format", "extra"]);
     if !other.is_empty() || design.validation().is_ok() {
