@@ -425,7 +425,7 @@ fn desktop_screenshot_under_xvfb() {
         "no screenshot: {}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let image = tagsmith::synth::decode_gray_png(&std::fs::read(&shot).unwrap()).unwrap();
+    let image = tagsmith::image::read(&shot, &Default::default()).unwrap();
     assert!(image.width >= 1000 && image.height >= 700);
     // A drawn window, not a blank frame: dark panels and a white marker preview.
     let (dark, light) = image.pixels.iter().fold((0, 0), |(d, l), &p| {

@@ -6,7 +6,7 @@ use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::fmt;
 use std::path::{Path, PathBuf};
-use tagsmith::codebook::{self, GenerateParams, Order};
+use tagsmith::codebook::{self, Order};
 use tagsmith::family::{self, Family};
 use tagsmith::render::sheet::{layout_sheet, parse_ids, PageSize, SheetParams};
 use tagsmith::render::{marker_scene, pdf, raster, svg, SceneOptions};
@@ -391,7 +391,7 @@ fn render(a: RenderArgs) -> Result<()> {
             )))
         }
     };
-    for w in family.warnings() {
+    for w in tagsmith::render::readback::warnings(&family) {
         eprintln!("warning: {w}");
     }
     write_output(&a.output, &bytes)?;
@@ -512,7 +512,7 @@ fn stats(name: &str) -> Result<()> {
 
 fn generate(a: GenerateArgs) -> Result<()> {
     let family = load_family(&a.family)?;
-    let mut params = GenerateParams::for_family(&family, a.min_distance);
+    let mut params = family.generate_params(a.min_distance);
     params.max_codes = a.count;
     params.seed = a.seed;
     params.max_candidates = a.max_candidates;
@@ -580,7 +580,7 @@ fn validate(file: &Path) -> Result<()> {
             )));
         }
     }
-    for w in family.warnings() {
+    for w in tagsmith::render::readback::warnings(&family) {
         eprintln!("warning: {w}");
     }
     println!(
@@ -597,7 +597,7 @@ fn validate(file: &Path) -> Result<()> {
 
 fn export_opencv(name: &str, output: &Path) -> Result<()> {
     let family = load_family(name)?;
-    let yaml = codebook::opencv::dictionary_yaml(&family).map_err(|e| bad(anyhow!(e)))?;
+    let yaml = tagsmith::render::opencv::dictionary_yaml(&family).map_err(|e| bad(anyhow!(e)))?;
     write_output(output, yaml.as_bytes())?;
     println!(
         "wrote {} ({} markers) — load with cv2.aruco.Dictionary.readDictionary(cv2.FileStorage(path, cv2.FILE_STORAGE_READ).root())",
@@ -639,7 +639,7 @@ fn synth(a: SynthArgs) -> Result<()> {
             let sample = synth::synthesize(&family, &config, synth::image_seed(a.seed, i))
                 .map_err(|e| bad(anyhow!(e)))?;
             let stem = format!("{i:06}");
-            let png = contact::encode_gray_png(&sample.image).map_err(|e| failed(anyhow!(e)))?;
+            let png = tagsmith::image::encode_png(&sample.image).map_err(failed)?;
             write_output(&a.output.join(format!("{stem}.png")), &png)?;
             let json =
                 serde_json::to_string_pretty(&sample.truth).expect("ground truth serialises");
@@ -669,7 +669,8 @@ fn synth(a: SynthArgs) -> Result<()> {
 }
 
 fn eval(command: EvalCommand) -> Result<()> {
-    use tagsmith::eval::{score, set, Detection, DetectionsFile, ImageDetections, PoseJson};
+    use tagsmith::detect::DetectionsFile;
+    use tagsmith::eval::{score, set};
     match command {
         EvalCommand::Generate {
             family,
@@ -698,31 +699,7 @@ fn eval(command: EvalCommand) -> Result<()> {
         }
         EvalCommand::Oracle { set: dir, output } => {
             let s = set::load(&dir).map_err(|e| bad(anyhow!(e)))?;
-            let images = s
-                .images
-                .iter()
-                .map(|img| ImageDetections {
-                    file: img.file.clone(),
-                    time_ms: 0.0,
-                    detections: img
-                        .truth
-                        .markers
-                        .iter()
-                        .map(|m| Detection {
-                            id: m.id,
-                            corners: [m.roi[0], m.roi[1], m.roi[2], m.roi[3]],
-                            pose: m.pose.as_ref().map(|p| PoseJson {
-                                rotation: p.rotation,
-                                translation_m: p.translation_m,
-                            }),
-                        })
-                        .collect(),
-                })
-                .collect();
-            let file = DetectionsFile {
-                detector: "ground truth".into(),
-                images,
-            };
+            let file = s.oracle();
             write_output(
                 &output,
                 serde_json::to_string_pretty(&file)

@@ -8,7 +8,6 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 use tagsmith::detect::annotate::annotate;
 use tagsmith::detect::stage2::Stage2;
-use tagsmith::eval::set::read_gray_png;
 use tagsmith::family::Family;
 use tagsmith::geometry::Camera;
 use tagsmith::train::{self, Event, TrainConfig};
@@ -56,7 +55,7 @@ pub struct TrainArgs {
 
 #[derive(Args, Debug)]
 pub struct DetectArgs {
-    /// Image (PNG).
+    /// Image: PNG, JPEG, BMP, TIFF, WebP or PNM (colour is converted to gray).
     pub image: PathBuf,
     /// Built-in family name or path to a family JSON file.
     #[arg(long)]
@@ -81,6 +80,28 @@ pub struct DetectArgs {
     /// Write the image with the ROI, outline and keypoints drawn on it (PNG).
     #[arg(long)]
     pub annotate: Option<PathBuf>,
+    /// Refuse images larger than this many pixels (width × height) before decoding them.
+    #[arg(long, default_value_t = tagsmith::image::Limits::DEFAULT_MAX_PIXELS)]
+    pub max_pixels: u64,
+}
+
+/// Reads an image through the core's bounded decoder: a bad file is bad input (exit 2), named once.
+pub(crate) fn read_image(path: &Path, max_pixels: u64) -> Result<tagsmith::image::GrayImage> {
+    let limits = tagsmith::image::Limits { max_pixels };
+    tagsmith::image::read(path, &limits).map_err(|e| {
+        let hint = matches!(e.kind, tagsmith::image::ImageErrorKind::TooLarge { .. });
+        let bad_input = e.kind.is_bad_input();
+        let e = if hint {
+            anyhow!("{e} (raise it with --max-pixels)")
+        } else {
+            anyhow!(e)
+        };
+        if bad_input {
+            bad(e)
+        } else {
+            failed(e)
+        }
+    })
 }
 
 pub fn train(a: TrainArgs) -> Result<()> {
@@ -237,14 +258,15 @@ fn load_model(model: Option<&Path>, family: &Family) -> Result<Stage2> {
     match model {
         Some(path) => Stage2::load(path, family).map_err(bad),
         None => {
-            let bytes = tagsmith::detect::shipped_model(family.name()).ok_or_else(|| {
-                bad(anyhow!(
+            let bytes =
+                tagsmith::detect::stage2::shipped_model(family.name()).ok_or_else(|| {
+                    bad(anyhow!(
                     "no weights are shipped for family {:?}; train them with `tagsmith train {} \
                      --stage keypoints` and pass --model",
                     family.name(),
                     family.name()
                 ))
-            })?;
+                })?;
             Stage2::from_bytes(
                 bytes,
                 &format!("shipped weights of {}", family.name()),
@@ -258,7 +280,7 @@ fn load_model(model: Option<&Path>, family: &Family) -> Result<Stage2> {
 pub fn detect(a: DetectArgs) -> Result<()> {
     let family = load_family(&a.family)?;
     let roi = parse_roi(&a.roi)?;
-    let image = read_gray_png(&a.image).map_err(|e| bad(anyhow!("{}: {e}", a.image.display())))?;
+    let image = read_image(&a.image, a.max_pixels)?;
     let (camera, camera_source) = match &a.camera {
         Some(path) => (load_camera(path, (image.width, image.height))?, "given"),
         None => (
@@ -360,72 +382,34 @@ pub struct DetectSetArgs {
 /// Stage 2 on every marker of a benchmark set from its ground-truth ROI moved by stage-1-like
 /// noise; the time per image is stage 2 alone (warps, network, post-processing, PnP, all passes).
 pub fn detect_set(a: DetectSetArgs) -> Result<()> {
-    use rand::{Rng, SeedableRng};
     use tagsmith::eval::set::{self, Group};
-    use tagsmith::eval::{Detection, DetectionsFile, ImageDetections, PoseJson};
+    use tagsmith::eval::stage2_from_truth::Stage2FromTruth;
     let s = set::load(&a.set).map_err(|e| bad(anyhow!(e)))?;
     let family = load_family(&s.family)?;
     if !(0.0..0.5).contains(&a.roi_noise) {
         return Err(bad(anyhow!("--roi-noise must be in [0, 0.5)")));
     }
     let model = load_model(a.model.as_deref(), &family)?;
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(a.seed);
-    let mut images = Vec::new();
-    let mut times = Vec::new();
-    for img in &s.images {
-        if a.normal_only && !matches!(img.group, Group::Protocol { normal: true, .. }) {
-            continue;
-        }
-        let gray = read_gray_png(&a.set.join(&img.file)).map_err(|e| bad(anyhow!(e)))?;
-        let mut detections = Vec::new();
-        let mut elapsed = 0.0;
-        for m in &img.truth.markers {
-            let side = (m.roi[1][0] - m.roi[0][0]).hypot(m.roi[1][1] - m.roi[0][1]);
-            let r = a.roi_noise * side;
-            let roi: [[f64; 2]; 4] = std::array::from_fn(|j| {
-                [
-                    m.roi[j][0] + rng.random_range(-r..=r),
-                    m.roi[j][1] + rng.random_range(-r..=r),
-                ]
-            });
-            let start = std::time::Instant::now();
-            let found = model.detect(&gray, &roi, a.iterations, Some((&s.camera, s.side_m)));
-            elapsed += start.elapsed().as_secs_f64() * 1e3;
-            if let Some(d) = found {
-                let pose = d.pose.map(|p| {
-                    let m = p.pose.rotation.matrix();
-                    PoseJson {
-                        rotation: std::array::from_fn(|i| std::array::from_fn(|j| m[(i, j)])),
-                        translation_m: [
-                            p.pose.translation[0],
-                            p.pose.translation[1],
-                            p.pose.translation[2],
-                        ],
-                    }
-                });
-                detections.push(Detection {
-                    id: d.id,
-                    corners: d.corners,
-                    pose,
-                });
-            }
-        }
-        if !img.truth.markers.is_empty() {
-            times.push(elapsed / img.truth.markers.len() as f64);
-        }
-        images.push(ImageDetections {
-            file: img.file.clone(),
-            time_ms: elapsed,
-            detections,
-        });
-    }
-    let file = DetectionsFile {
-        detector: format!(
-            "tagsmith-stage2 ({} passes, ROI noise ±{} side)",
-            a.iterations, a.roi_noise
-        ),
-        images,
+    let mut detector =
+        Stage2FromTruth::new(model, a.roi_noise, a.iterations, s.camera, s.side_m, a.seed);
+    let normal_only = a.normal_only;
+    let include = |img: &set::BenchImage| {
+        !normal_only || matches!(img.group, Group::Protocol { normal: true, .. })
     };
+    let file = set::run_detector(&a.set, &s, &mut detector, &include).map_err(|e| {
+        if e.kind.is_bad_input() {
+            bad(e)
+        } else {
+            failed(e)
+        }
+    })?;
+    let mut times: Vec<f64> = file
+        .images
+        .iter()
+        .zip(s.images.iter().filter(|img| include(img)))
+        .filter(|(_, img)| !img.truth.markers.is_empty())
+        .map(|(d, img)| d.time_ms / img.truth.markers.len() as f64)
+        .collect();
     let json = serde_json::to_string_pretty(&file).map_err(|e| failed(anyhow!(e)))?;
     write_output(&a.output, json.as_bytes())?;
     times.sort_by(f64::total_cmp);

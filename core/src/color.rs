@@ -30,7 +30,7 @@ impl Rgb {
     /// Relative luminance in 0..=1 (Rec. 709 weights on the encoded values): enough to tell
     /// dark from light patterns.
     pub fn luminance(self) -> f64 {
-        (0.2126 * self.0 as f64 + 0.7152 * self.1 as f64 + 0.0722 * self.2 as f64) / 255.0
+        crate::image::luminance(self.0 as f32, self.1 as f32, self.2 as f32) as f64 / 255.0
     }
 }
 

@@ -1,22 +1,40 @@
-//! Tagsmith: design fiducial-marker families and render, print and decode them.
+//! Tagsmith: design fiducial-marker families, render and print them, synthesise training images,
+//! and detect them with a learned two-stage detector.
 //!
-//! The pipeline, one module per stage: [`family`] (the data model, JSON I/O and validation) →
-//! [`codebook`] (code tables, decoding, generation) → [`render`] (vector scenes, SVG, rasters,
-//! sheets, PDF) → [`geometry`] (homographies, warping, cameras) → [`pose`] (planar PnP).
-//! [`builtin`] holds the families shipped in `families/`.
+//! Modules are layers, read as the pipeline; each uses only those listed before it (checked by
+//! `tests/layers.rs`; the map is in `docs/ARCHITECTURE.md`).
 
-pub mod builtin;
-pub mod codebook;
-pub mod color;
-pub mod detect;
-pub mod eval;
-pub mod family;
-pub mod geometry;
+// Foundation.
+/// A problem in an input file, located by its JSON path.
+pub mod problem;
+/// Atomic file writes.
 pub mod io;
-pub mod pose;
+/// The gray image type; reading images of any common format with limits; PNG output.
+pub mod image;
+/// `#rrggbb` colours.
+pub mod color;
+/// Homographies, warping, the pinhole camera, rigid poses.
+pub mod geometry;
+
+// The pipeline.
+/// Code tables: distances over rotations, nearest-code decoding, generation.
+pub mod codebook;
+/// The family model: file format, validation, patterns, keypoints, rotations, decoding a marker.
+pub mod family;
+/// The families shipped in `families/`.
+pub mod builtin;
+/// Vector scenes, SVG, rasters, printable sheets and PDF, read-back checks, OpenCV export.
 pub mod render;
+/// Training and test images with exact ground truth.
 pub mod synth;
+/// 6-DoF pose of a planar marker from all its keypoints.
+pub mod pose;
+/// The learned detector by stage, and what a detection reports.
+pub mod detect;
+/// Training the detector's networks (feature `learn`).
 #[cfg(feature = "learn")]
 pub mod train;
+/// Benchmark sets, running detectors on them, scoring.
+pub mod eval;
 
 pub use family::{Family, FamilyError};

@@ -55,7 +55,7 @@ pub fn pixmap_image(pixmap: &tiny_skia::Pixmap) -> ColorImage {
     )
 }
 
-pub fn gray_image(image: &tagsmith::geometry::GrayImage) -> ColorImage {
+pub fn gray_image(image: &tagsmith::image::GrayImage) -> ColorImage {
     ColorImage::from_gray([image.width as usize, image.height as usize], &image.pixels)
 }
 

@@ -66,22 +66,6 @@ impl GenerateParams {
             order: Order::Random,
         }
     }
-
-    /// Parameters for a family's layout: its code length, alphabet and rotations.
-    pub fn for_family(family: &crate::family::Family, min_distance: u32) -> Self {
-        let mut p = Self::new(family.q(), family.code_len(), min_distance);
-        p.rotations = family
-            .ambiguous_rotations()
-            .filter_map(|r| r.code_perm.clone())
-            .collect();
-        p.symmetry_rotations = family
-            .rotations()
-            .iter()
-            .skip(1)
-            .filter_map(|r| r.code_perm.clone())
-            .collect();
-        p
-    }
 }
 
 #[derive(Debug, Clone)]

@@ -1,17 +1,18 @@
 //! Codebooks: which symbol sequences are valid IDs, their minimum Hamming distance over the
-//! rotations a layout admits, decoding with error correction, generation, and OpenCV export.
+//! rotations a layout admits, nearest-code search with error and erasure correction, and
+//! generation. It knows codes, lengths, alphabets and rotations as permutations, not families.
 
 mod decode;
 mod generate;
 pub mod import;
-pub mod opencv;
 pub mod packed;
+pub mod spec;
 
-pub use decode::{decode, decode_soft, Decoded};
+pub use decode::CodeMatch;
 pub use generate::{generate, GenerateParams, GenerateReport, Order};
+pub use spec::{CodeEncoding, CodebookSpec};
 
-use crate::family::spec::{CodeEncoding, CodebookSpec};
-use crate::family::Problem;
+use crate::problem::Problem;
 use packed::{permute, Packing};
 use std::collections::HashMap;
 

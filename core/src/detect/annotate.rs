@@ -1,7 +1,7 @@
 //! An annotated copy of an image: the input ROI (yellow), the marker's outline from its keypoints
 //! (green, the canonical first corner ringed in red) and every keypoint coloured by category.
 
-use crate::geometry::GrayImage;
+use crate::image::GrayImage;
 use crate::render::raster::encode_png;
 use tiny_skia::{Color, FillRule, Paint, PathBuilder, Pixmap, Stroke, Transform};
 

@@ -1,65 +1,9 @@
-//! The learned detector (DESIGN §5), stage 2: a rough marker ROI → a rectified patch → every
-//! keypoint with its category → sorted to the family's template → ID, rotation, corrected errors
-//! → keypoints in the image → pose.
-//!
-//! [`anchors`] (patch geometry, target encoding and output decoding) and [`sort`] (template fit)
-//! are plain Rust; the network ([`net`]), the model file ([`model_file`]) and the pipeline
-//! ([`stage2`]) need the `learn` feature (burn).
+//! The learned detector: its stages by name and what they hand on. Stage 2 ([`stage2`]) reads a
+//! marker from its ROI; [`Detection`] is what any detector reports, and [`Detector`] is the
+//! interface the evaluation harness runs.
 
-pub mod anchors;
 pub mod annotate;
-pub mod sort;
-
-#[cfg(feature = "learn")]
-pub mod model_file;
-#[cfg(feature = "learn")]
-pub mod net;
-#[cfg(feature = "learn")]
+mod detection;
 pub mod stage2;
 
-use crate::geometry::GrayImage;
-
-/// Stage-2 weights shipped in `assets/models/` for built-in families, by family name.
-const SHIPPED: &[(&str, &[u8])] = &[
-    (
-        "apriltag-36h11",
-        include_bytes!("../../../assets/models/apriltag-36h11.stage2.bin"),
-    ),
-    (
-        "apriltag-xo-36h11",
-        include_bytes!("../../../assets/models/apriltag-xo-36h11.stage2.bin"),
-    ),
-];
-
-/// The shipped stage-2 model file of a built-in family, if it has one.
-pub fn shipped_model(family: &str) -> Option<&'static [u8]> {
-    SHIPPED
-        .iter()
-        .find(|(name, _)| *name == family)
-        .map(|(_, bytes)| *bytes)
-}
-
-/// The network's input: each patch standardised to zero mean and unit contrast, so the marker's
-/// gray levels and lighting (black is not 0, white not 255 in the training data) do not matter.
-pub fn normalise_patch(patch: &GrayImage) -> Vec<f32> {
-    let n = patch.pixels.len().max(1) as f32;
-    let mean = patch.pixels.iter().map(|&p| p as f32).sum::<f32>() / n;
-    let var = patch
-        .pixels
-        .iter()
-        .map(|&p| (p as f32 - mean).powi(2))
-        .sum::<f32>()
-        / n;
-    // A flat patch has no contrast to normalise; 8 gray levels keeps its noise from blowing up.
-    let scale = 1.0 / var.sqrt().max(8.0);
-    patch
-        .pixels
-        .iter()
-        .map(|&p| (p as f32 - mean) * scale)
-        .collect()
-}
-
-#[cfg(all(test, feature = "learn"))]
-mod shipped_tests;
-#[cfg(test)]
-mod tests;
+pub use detection::{Detection, DetectionsFile, Detector, ImageDetections};

@@ -16,42 +16,5 @@
 mod plot;
 pub mod score;
 pub mod set;
-
-use crate::geometry::GrayImage;
-use serde::{Deserialize, Serialize};
-
-/// One detected marker.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Detection {
-    pub id: usize,
-    pub corners: [[f64; 2]; 4],
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub pose: Option<PoseJson>,
-}
-
-/// A pose as written in JSON: row-major rotation (marker → camera) and translation in metres.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct PoseJson {
-    pub rotation: [[f64; 3]; 3],
-    pub translation_m: [f64; 3],
-}
-
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct ImageDetections {
-    pub file: String,
-    #[serde(default)]
-    pub time_ms: f64,
-    pub detections: Vec<Detection>,
-}
-
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct DetectionsFile {
-    pub detector: String,
-    pub images: Vec<ImageDetections>,
-}
-
-/// What the learned detector (and any in-process baseline) implements to be benchmarked.
-pub trait Detector {
-    fn name(&self) -> String;
-    fn detect(&mut self, image: &GrayImage) -> Vec<Detection>;
-}
+#[cfg(feature = "learn")]
+pub mod stage2_from_truth;

@@ -4,7 +4,7 @@
 //! four corners through the set's camera (the same PnP for every detector).
 
 use super::set::{BenchmarkSet, Group};
-use super::{Detection, DetectionsFile, PoseJson};
+use crate::detect::{Detection, DetectionsFile};
 use crate::family::Family;
 use crate::geometry::bounding_box;
 use crate::pose::{marker_plane_points, solve_planar, Pose};
@@ -92,13 +92,6 @@ struct Outcome {
     time_ms: f64,
 }
 
-fn pose_from_json(p: &PoseJson) -> Pose {
-    Pose {
-        rotation: Rotation3::from_matrix_unchecked(Matrix3::from_fn(|i, j| p.rotation[i][j])),
-        translation: Vector3::from(p.translation_m),
-    }
-}
-
 fn iou(a: [f64; 4], b: [f64; 4]) -> f64 {
     let w = (a[2].min(b[2]) - a[0].max(b[0])).max(0.0);
     let h = (a[3].min(b[3]) - a[1].max(b[1])).max(0.0);
@@ -131,7 +124,7 @@ fn judge(
         });
         let Some((i, t)) = hit else { continue };
         used[i] = true;
-        let detected = d.pose.as_ref().map(pose_from_json).or_else(|| {
+        let detected = d.pose.as_ref().map(Pose::from).or_else(|| {
             let f = family?;
             let object = marker_plane_points(f, set.side_m, &f.roi_points()[..4]);
             solve_planar(&set.camera, &object, &d.corners)
@@ -140,10 +133,7 @@ fn judge(
         });
         let errors = match (detected, &t.pose) {
             (Some(p), Some(tp)) => {
-                let truth_pose = pose_from_json(&PoseJson {
-                    rotation: tp.rotation,
-                    translation_m: tp.translation_m,
-                });
+                let truth_pose = Pose::from(&tp.pose);
                 (
                     p.position_error(&truth_pose),
                     p.rotation_error_deg(&truth_pose),
@@ -237,7 +227,7 @@ pub fn score(
     family: Option<&Family>,
     detections: &DetectionsFile,
 ) -> Result<Report, String> {
-    let by_file: HashMap<&str, &super::ImageDetections> = detections
+    let by_file: HashMap<&str, &crate::detect::ImageDetections> = detections
         .images
         .iter()
         .map(|i| (i.file.as_str(), i))

@@ -4,11 +4,11 @@
 //! Gaussian noise sweep (σ 0…300) and a motion-blur sweep (kernel 0…15, 10 directions). Written to
 //! disk once, seeded, so every detector sees the same images.
 
-use super::{DetectionsFile, Detector, ImageDetections};
+use crate::detect::{Detection, DetectionsFile, Detector, ImageDetections};
 use crate::family::Family;
-use crate::geometry::{Camera, GrayImage};
+use crate::geometry::Camera;
 use crate::synth::augment::AugmentRanges;
-use crate::synth::{contact::encode_gray_png, image_seed, synthesize, Mode, SynthConfig, Truth};
+use crate::synth::{image_seed, synthesize, Mode, SynthConfig, Truth};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -181,7 +181,7 @@ pub fn generate(family: &Family, params: &SetParams, dir: &Path) -> Result<Bench
         .map(|(i, (group, config, seed))| {
             let sample = synthesize(family, config, *seed)?;
             let file = format!("images/{i:06}.png");
-            let png = encode_gray_png(&sample.image)?;
+            let png = crate::image::encode_png(&sample.image).map_err(|e| e.to_string())?;
             crate::io::write_atomic(&dir.join(&file), &png).map_err(|e| format!("{file}: {e}"))?;
             Ok(BenchImage {
                 file,
@@ -210,20 +210,52 @@ pub fn load(dir: &Path) -> Result<BenchmarkSet, String> {
     serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
 }
 
-pub fn read_gray_png(path: &Path) -> Result<GrayImage, String> {
-    let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    crate::synth::decode_gray_png(&bytes).map_err(|e| format!("{}: {e}", path.display()))
+impl BenchImage {
+    /// The ground truth as detections: what a perfect detector reports (with poses when
+    /// `with_pose`). The reference for the detections format.
+    pub fn truth_detections(&self, with_pose: bool) -> Vec<Detection> {
+        self.truth
+            .markers
+            .iter()
+            .map(|m| Detection {
+                id: m.id,
+                corners: [m.roi[0], m.roi[1], m.roi[2], m.roi[3]],
+                pose: m.pose.as_ref().filter(|_| with_pose).map(|p| p.pose),
+            })
+            .collect()
+    }
 }
 
-/// Runs an in-process detector over the set, timing each image.
+impl BenchmarkSet {
+    /// The whole set's ground truth as a detections file (`tagsmith eval oracle`).
+    pub fn oracle(&self) -> DetectionsFile {
+        DetectionsFile {
+            detector: "ground truth".into(),
+            images: self
+                .images
+                .iter()
+                .map(|img| ImageDetections {
+                    file: img.file.clone(),
+                    time_ms: 0.0,
+                    detections: img.truth_detections(true),
+                })
+                .collect(),
+        }
+    }
+}
+
+/// Runs an in-process detector over the images of the set that `include` accepts, timing each
+/// image's [`Detector::detect`] (the image is read before the clock starts).
 pub fn run_detector(
     dir: &Path,
     set: &BenchmarkSet,
     detector: &mut dyn Detector,
-) -> Result<DetectionsFile, String> {
+    include: &dyn Fn(&BenchImage) -> bool,
+) -> Result<DetectionsFile, crate::image::ImageError> {
     let mut images = Vec::with_capacity(set.images.len());
-    for img in &set.images {
-        let gray = read_gray_png(&dir.join(&img.file))?;
+    for img in set.images.iter().filter(|img| include(img)) {
+        let gray = crate::image::read(&dir.join(&img.file), &Default::default())?;
+        detector.observe_truth(&img.truth);
         let start = Instant::now();
         let detections = detector.detect(&gray);
         images.push(ImageDetections {

@@ -3,7 +3,7 @@
 
 use super::spec::*;
 use crate::codebook::import::{AprilTag3Table, OpenCvTable};
-use crate::codebook::{generate, Codebook, GenerateParams};
+use crate::codebook::{generate, Codebook};
 use crate::family::{Family, FamilyError};
 use std::collections::BTreeMap;
 
@@ -251,7 +251,7 @@ pub fn fill_codebook(
     start_with_zero: bool,
 ) -> Result<(), String> {
     let family = Family::from_spec(spec.clone()).map_err(|e: FamilyError| e.to_string())?;
-    let mut params = GenerateParams::for_family(&family, min_distance);
+    let mut params = family.generate_params(min_distance);
     params.max_codes = max_codes;
     params.seed = seed;
     params.start_with_zero = start_with_zero;

@@ -3,21 +3,7 @@
 use std::fmt;
 use std::path::PathBuf;
 
-/// One thing wrong with a family, at a JSON path such as `layout.cells[3]`.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Problem {
-    pub path: String,
-    pub message: String,
-}
-
-impl Problem {
-    pub fn new(path: impl Into<String>, message: impl Into<String>) -> Self {
-        Self {
-            path: path.into(),
-            message: message.into(),
-        }
-    }
-}
+pub use crate::problem::Problem;
 
 /// A family that could not be loaded: the file (when there is one) and every problem found.
 #[derive(Debug, Clone, PartialEq, Eq)]

@@ -2,22 +2,25 @@
 //! validated [`Family`] with everything derived from a spec — keypoints in canonical order, the
 //! rotations the layout admits, and the parsed codebook.
 
+mod decode;
 pub mod designs;
 pub mod edit;
 mod error;
 mod geometry;
 mod load;
+pub mod pattern;
 pub mod spec;
 mod validate;
 
+pub use decode::{decode, decode_soft, Decoded};
 pub use error::{FamilyError, Problem};
 pub use geometry::{Extent, Keypoint, Rotation};
 pub use load::{from_json_str, load_file, schema_json, to_json_string};
 pub use spec::FamilySpec;
 
-use crate::codebook::Codebook;
+use crate::codebook::{Codebook, GenerateParams};
 use crate::color::Rgb;
-use crate::render::primitives::CategoryPattern;
+use crate::family::pattern::CategoryPattern;
 
 /// What a keypoint carries.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -162,7 +165,24 @@ impl Family {
         geometry::regressed_keypoints(self)
     }
 
-    /// Non-fatal remarks about the design (printing and decoding risks).
+    /// Codebook generation parameters for this layout: its code length, alphabet and rotations.
+    pub fn generate_params(&self, min_distance: u32) -> GenerateParams {
+        let mut p = GenerateParams::new(self.q(), self.code_len(), min_distance);
+        p.rotations = self
+            .ambiguous_rotations()
+            .filter_map(|r| r.code_perm.clone())
+            .collect();
+        p.symmetry_rotations = self
+            .rotations()
+            .iter()
+            .skip(1)
+            .filter_map(|r| r.code_perm.clone())
+            .collect();
+        p
+    }
+
+    /// Non-fatal remarks about the design that the model alone can tell (printing and decoding
+    /// risks); `render::readback::warnings` adds those that need the rendering.
     pub fn warnings(&self) -> Vec<String> {
         let mut out = Vec::new();
         if self.quiet_zone_is_thin(self.quiet_zone) {
@@ -172,15 +192,6 @@ impl Family {
                 self.name(),
                 self.quiet_zone,
                 self.cell_size()
-            ));
-        }
-        for (a, b) in crate::render::readback::Reader::new(self).indistinct_pairs() {
-            out.push(format!(
-                "{}: categories {:?} and {:?} look alike; the detector can only tell categories apart \
-                 by shape or colour",
-                self.name(),
-                self.categories[a].name,
-                self.categories[b].name
             ));
         }
         if let Some(d) = self.spec.codebook.min_distance {
@@ -196,4 +207,18 @@ impl Family {
         }
         out
     }
+}
+
+/// Marker-unit points (y down) → metric marker-plane points (x right, y up, origin at the ROI
+/// square's centre), for a marker printed `side_m` metres corner to corner.
+pub fn marker_plane_points(family: &Family, side_m: f64, points: &[[f64; 2]]) -> Vec<[f64; 2]> {
+    let roi = &family.roi_points()[..4];
+    let c = roi
+        .iter()
+        .fold([0.0, 0.0], |a, p| [a[0] + p[0] / 4.0, a[1] + p[1] / 4.0]);
+    let s = side_m / family.roi_side();
+    points
+        .iter()
+        .map(|p| [(p[0] - c[0]) * s, -(p[1] - c[1]) * s])
+        .collect()
 }

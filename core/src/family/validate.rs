@@ -9,7 +9,7 @@ use super::spec::{FamilySpec, GridLayout, KeypointSet, Layout, RingsLayout, Role
 use super::{Assignment, Family, FamilyError, Problem};
 use crate::codebook::Codebook;
 use crate::color::Rgb;
-use crate::render::primitives::{parse_category, CategoryPattern};
+use crate::family::pattern::{parse_category, CategoryPattern};
 use std::collections::HashMap;
 
 pub const MAX_GRID: u32 = 32;

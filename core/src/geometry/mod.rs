@@ -1,13 +1,15 @@
-//! Camera geometry: homographies ([`homography`]), warping images by them ([`warp`]) and the
-//! pinhole camera with OpenCV's distortion model ([`camera`]).
+//! Camera geometry: homographies ([`homography`]), warping images by them ([`warp`]), the
+//! pinhole camera with OpenCV's distortion model ([`camera`]) and rigid poses ([`pose`]).
 
 pub mod camera;
 pub mod homography;
+pub mod pose;
 pub mod warp;
 
 pub use camera::Camera;
 pub use homography::Homography;
-pub use warp::{warp_bilinear, GrayImage};
+pub use pose::{Pose, PoseJson};
+pub use warp::warp_bilinear;
 
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
 pub enum GeometryError {

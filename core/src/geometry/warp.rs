@@ -3,28 +3,7 @@
 //! per pixel) instead of multiplying a matrix per pixel.
 
 use super::Homography;
-
-/// An 8-bit grayscale image, row-major.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct GrayImage {
-    pub width: u32,
-    pub height: u32,
-    pub pixels: Vec<u8>,
-}
-
-impl GrayImage {
-    pub fn new(width: u32, height: u32, fill: u8) -> Self {
-        Self {
-            width,
-            height,
-            pixels: vec![fill; width as usize * height as usize],
-        }
-    }
-
-    pub fn get(&self, x: u32, y: u32) -> u8 {
-        self.pixels[y as usize * self.width as usize + x as usize]
-    }
-}
+use crate::image::{mix, GrayImage};
 
 /// Fills an `out_width` × `out_height` image: output pixel (u, v) takes the source at
 /// `out_to_src · (u, v, 1)`, bilinearly interpolated; outside the source it takes `border`.
@@ -56,9 +35,15 @@ pub fn warp_bilinear(
                     let (fx, fy) = ((sx - x0) as f32, (sy - y0) as f32);
                     let i = iy as usize * stride + ix as usize;
                     let p = &src.pixels;
-                    let top = p[i] as f32 * (1.0 - fx) + p[i + 1] as f32 * fx;
-                    let bottom = p[i + stride] as f32 * (1.0 - fx) + p[i + stride + 1] as f32 * fx;
-                    *px = (top * (1.0 - fy) + bottom * fy + 0.5) as u8;
+                    let v = mix(
+                        p[i] as f32,
+                        p[i + 1] as f32,
+                        p[i + stride] as f32,
+                        p[i + stride + 1] as f32,
+                        fx,
+                        fy,
+                    );
+                    *px = (v + 0.5) as u8;
                 }
             }
             x += m[(0, 0)];

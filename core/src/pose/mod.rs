@@ -4,58 +4,11 @@
 //! The marker frame is OpenCV ArUco's: origin at the centre of the ROI square, x right, y up,
 //! z out of the marker face (towards a camera that sees it). Poses map marker to camera frame.
 
-use crate::family::Family;
 use crate::geometry::{check_correspondences, Camera, GeometryError, Homography};
 use nalgebra::{DMatrix, DVector, Matrix3, Rotation3, Vector3};
 
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Pose {
-    pub rotation: Rotation3<f64>,
-    /// Metres, camera frame.
-    pub translation: Vector3<f64>,
-}
-
-impl Pose {
-    pub fn apply(&self, p: [f64; 3]) -> [f64; 3] {
-        let q = self.rotation * Vector3::new(p[0], p[1], p[2]) + self.translation;
-        [q[0], q[1], q[2]]
-    }
-
-    /// Angle of the rotation between two poses, in degrees.
-    pub fn rotation_error_deg(&self, other: &Pose) -> f64 {
-        // atan2(sin, cos) stays accurate near zero, where acos of the trace loses half the digits
-        // (and returns NaN when rounding pushes the trace past 3).
-        let m = (self.rotation.inverse() * other.rotation).into_inner();
-        let sin = Vector3::new(
-            m[(2, 1)] - m[(1, 2)],
-            m[(0, 2)] - m[(2, 0)],
-            m[(1, 0)] - m[(0, 1)],
-        )
-        .norm()
-            / 2.0;
-        let cos = (m.trace() - 1.0) / 2.0;
-        sin.atan2(cos).to_degrees()
-    }
-
-    /// Distance between the two marker origins, in metres.
-    pub fn position_error(&self, other: &Pose) -> f64 {
-        (self.translation - other.translation).norm()
-    }
-}
-
-/// Marker-unit points (y down) → metric marker-plane points (x right, y up, origin at the ROI
-/// square's centre), for a marker printed `side_m` metres corner to corner.
-pub fn marker_plane_points(family: &Family, side_m: f64, points: &[[f64; 2]]) -> Vec<[f64; 2]> {
-    let roi = &family.roi_points()[..4];
-    let c = roi
-        .iter()
-        .fold([0.0, 0.0], |a, p| [a[0] + p[0] / 4.0, a[1] + p[1] / 4.0]);
-    let s = side_m / family.roi_side();
-    points
-        .iter()
-        .map(|p| [(p[0] - c[0]) * s, -(p[1] - c[1]) * s])
-        .collect()
-}
+pub use crate::family::marker_plane_points;
+pub use crate::geometry::{Pose, PoseJson};
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PnpSolution {

@@ -1,8 +1,8 @@
 //! Anti-aliased rasters of a scene through tiny-skia.
 
-use super::primitives::Seg;
 use super::scene::{MarkerScene, RenderError};
 use crate::color::Rgb;
+use crate::family::pattern::Seg;
 use tiny_skia::{FillRule, Paint, PathBuilder, Pixmap, Stroke, Transform};
 
 /// Renders a marker with `px_per_mm` pixels per millimetre.
@@ -109,7 +109,7 @@ pub fn rasterize_svg(svg: &str, width_px: u32) -> Result<Pixmap, RenderError> {
 /// One category's pattern on the family background, `px` pixels square, with the keypoint's cell
 /// spanning the middle `1 / view` of the image (patterns may spill over their cell a little).
 pub fn category_swatch(
-    pattern: &super::primitives::CategoryPattern,
+    pattern: &crate::family::pattern::CategoryPattern,
     background: Rgb,
     px: u32,
     view: f64,

@@ -2,9 +2,9 @@
 //! nearest category template. This checks that a family's patterns are distinct and that a
 //! rendering carries its own ID; it is not a detector (it needs the marker's exact placement).
 
-use super::primitives::{Path, Seg};
 use super::raster::rasterize;
 use super::scene::{Item, MarkerScene};
+use crate::family::pattern::{Path, Seg};
 use crate::family::Family;
 use tiny_skia::Pixmap;
 
@@ -149,14 +149,32 @@ impl Reader {
 
 /// Gray level at a sub-pixel position (pixel centres at +0.5), clamped to the image.
 fn bilinear(pixmap: &Pixmap, x: f64, y: f64) -> f64 {
-    let (w, h) = (pixmap.width() as f64, pixmap.height() as f64);
-    let (x, y) = ((x - 0.5).clamp(0.0, w - 1.0), (y - 0.5).clamp(0.0, h - 1.0));
-    let (x0, y0) = (x.floor(), y.floor());
-    let (fx, fy) = (x - x0, y - y0);
-    let g = |xx: f64, yy: f64| {
-        super::raster::gray_at(pixmap, xx.min(w - 1.0) as u32, yy.min(h - 1.0) as u32)
+    let pixels = pixmap.pixels();
+    let gray = |i: usize| {
+        let p = pixels[i];
+        crate::image::luminance(p.red() as f32, p.green() as f32, p.blue() as f32)
     };
-    let top = g(x0, y0) * (1.0 - fx) + g(x0 + 1.0, y0) * fx;
-    let bottom = g(x0, y0 + 1.0) * (1.0 - fx) + g(x0 + 1.0, y0 + 1.0) * fx;
-    top * (1.0 - fy) + bottom * fy
+    crate::image::bilinear(
+        pixmap.width(),
+        pixmap.height(),
+        (x - 0.5) as f32,
+        (y - 0.5) as f32,
+        gray,
+    ) as f64
+}
+
+/// Every warning about a design: the model's own ([`Family::warnings`]) and the categories that
+/// look alike once rendered (the detector can only tell categories apart by shape or colour).
+pub fn warnings(family: &Family) -> Vec<String> {
+    let mut out = family.warnings();
+    for (a, b) in Reader::new(family).indistinct_pairs() {
+        out.push(format!(
+            "{}: categories {:?} and {:?} look alike; the detector can only tell categories apart \
+             by shape or colour",
+            family.name(),
+            family.categories()[a].name,
+            family.categories()[b].name
+        ));
+    }
+    out
 }

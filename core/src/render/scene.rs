@@ -1,7 +1,7 @@
 //! One vector scene per marker, in millimetres, that every output (SVG, PDF, raster) draws.
 
-use super::primitives::{Path, Seg};
 use crate::color::Rgb;
+use crate::family::pattern::{Path, Seg};
 use crate::family::Family;
 use std::collections::{BTreeMap, HashMap};
 

@@ -1,7 +1,7 @@
 //! SVG output with millimetre units: `width="40mm"` and a viewBox in mm, so one user unit is 1 mm.
 
-use super::primitives::{Path, Seg};
 use super::scene::{Item, MarkerScene};
+use crate::family::pattern::{Path, Seg};
 use std::fmt::Write;
 use svg::node::element::{Group, Path as SvgPath};
 use svg::Document;

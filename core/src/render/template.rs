@@ -5,7 +5,8 @@
 use super::raster::{gray_at, rasterize};
 use super::scene::{marker_scene, RenderError, SceneOptions};
 use crate::family::Family;
-use crate::geometry::{warp_bilinear, GrayImage, Homography};
+use crate::geometry::{warp_bilinear, Homography};
+use crate::image::GrayImage;
 
 /// The ROI square's corners in a `size`-pixel template with margin `a` (fraction of the side).
 pub fn template_corners(size: u32, margin: f64) -> [[f64; 2]; 4] {

@@ -3,7 +3,7 @@
 //! markers on top (dark and light rectangles and bars), so the detector learns what is *not* one.
 
 use super::Canvas;
-use crate::geometry::GrayImage;
+use crate::image::GrayImage;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use std::sync::OnceLock;
@@ -26,7 +26,8 @@ fn photos() -> &'static [GrayImage] {
         PHOTOS
             .iter()
             .map(|bytes| {
-                super::decode_gray_png(bytes).expect("the embedded backgrounds are valid PNGs")
+                crate::image::decode(bytes, &Default::default())
+                    .expect("the embedded backgrounds are valid PNGs")
             })
             .collect()
     })

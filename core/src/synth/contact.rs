@@ -3,7 +3,7 @@
 //! check by eye that the truth sits exactly on the markers.
 
 use super::Truth;
-use crate::geometry::GrayImage;
+use crate::image::GrayImage;
 use tiny_skia::{Color, Paint, PathBuilder, Pixmap, Stroke, Transform};
 
 const PALETTE: [(u8, u8, u8); 6] = [
@@ -117,19 +117,4 @@ fn dot(pixmap: &mut Pixmap, x: f32, y: f32, r: f32, c: (u8, u8, u8)) {
             None,
         );
     }
-}
-
-/// An 8-bit grayscale PNG.
-pub fn encode_gray_png(image: &GrayImage) -> Result<Vec<u8>, String> {
-    let mut out = Vec::new();
-    {
-        let mut encoder = png::Encoder::new(&mut out, image.width, image.height);
-        encoder.set_color(png::ColorType::Grayscale);
-        encoder.set_depth(png::BitDepth::Eight);
-        let mut writer = encoder.write_header().map_err(|e| e.to_string())?;
-        writer
-            .write_image_data(&image.pixels)
-            .map_err(|e| e.to_string())?;
-    }
-    Ok(out)
 }

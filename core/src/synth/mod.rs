@@ -9,8 +9,9 @@ mod background;
 pub mod contact;
 
 use crate::family::Family;
-use crate::geometry::{bounding_box, Camera, GrayImage, Homography};
-use crate::pose::{marker_plane_points, Pose};
+use crate::geometry::{bounding_box, Camera, Homography, Pose, PoseJson};
+use crate::image::GrayImage;
+use crate::family::marker_plane_points;
 use crate::render::{marker_scene, raster, SceneOptions};
 use augment::{draw, AugmentRanges};
 use nalgebra::{Matrix3, Rotation3, Vector3};
@@ -42,14 +43,7 @@ impl Canvas {
     }
     /// Bilinear sample, clamped at the borders.
     pub fn sample(&self, x: f32, y: f32) -> f32 {
-        let (w, h) = (self.width as f32 - 1.0, self.height as f32 - 1.0);
-        let (x, y) = (x.clamp(0.0, w), y.clamp(0.0, h));
-        let (x0, y0) = (x.floor(), y.floor());
-        let (fx, fy) = (x - x0, y - y0);
-        let (x1, y1) = ((x0 + 1.0).min(w), (y0 + 1.0).min(h));
-        let g = |xx: f32, yy: f32| self.get(xx as u32, yy as u32);
-        (g(x0, y0) * (1.0 - fx) + g(x1, y0) * fx) * (1.0 - fy)
-            + (g(x0, y1) * (1.0 - fx) + g(x1, y1) * fx) * fy
+        crate::image::bilinear(self.width, self.height, x, y, |i| self.pixels[i])
     }
     pub fn clamp(&mut self) {
         self.pixels.iter_mut().for_each(|p| *p = p.clamp(0.0, 1.0));
@@ -133,9 +127,9 @@ pub struct KeypointTruth {
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PoseTruth {
-    /// Row-major 3×3 rotation, marker frame (OpenCV ArUco's) → camera frame.
-    pub rotation: [[f64; 3]; 3],
-    pub translation_m: [f64; 3],
+    /// Marker frame (OpenCV ArUco's) → camera frame.
+    #[serde(flatten)]
+    pub pose: PoseJson,
     pub side_m: f64,
 }
 
@@ -183,31 +177,6 @@ pub struct Truth {
 pub struct Sample {
     pub image: GrayImage,
     pub truth: Truth,
-}
-
-/// Decodes a PNG (any bit depth or colour type) to 8-bit gray.
-pub fn decode_gray_png(bytes: &[u8]) -> Result<GrayImage, String> {
-    let mut decoder = png::Decoder::new(std::io::Cursor::new(bytes));
-    decoder.set_transformations(png::Transformations::EXPAND | png::Transformations::STRIP_16);
-    let mut reader = decoder.read_info().map_err(|e| e.to_string())?;
-    let mut buf = vec![0; reader.output_buffer_size()];
-    let info = reader.next_frame(&mut buf).map_err(|e| e.to_string())?;
-    let channels = info.color_type.samples();
-    let pixels = buf[..info.buffer_size()]
-        .chunks(channels)
-        .map(|p| {
-            if channels >= 3 {
-                ((p[0] as u32 * 299 + p[1] as u32 * 587 + p[2] as u32 * 114) / 1000) as u8
-            } else {
-                p[0]
-            }
-        })
-        .collect();
-    Ok(GrayImage {
-        width: info.width,
-        height: info.height,
-        pixels,
-    })
 }
 
 /// The seed of image `index` of a run seeded with `seed`.
@@ -545,7 +514,7 @@ fn draw_marker(
                 p.green() as f32 * balance[1],
                 p.blue() as f32 * balance[2],
             );
-            ((0.2126 * r + 0.7152 * g + 0.0722 * b) / 255.0).min(1.0)
+            (crate::image::luminance(r, g, b) / 255.0).min(1.0)
         })
         .collect();
     let from_image = to_image
@@ -568,14 +537,7 @@ fn draw_marker(
             // its true scale is its size over the area's.
             let rx = ((p[0] - area.min[0]) * scale_x - 0.5) as f32;
             let ry = ((p[1] - area.min[1]) * scale_y - 0.5) as f32;
-            let (fx0, fy0) = (rx.floor(), ry.floor());
-            let (fx, fy) = (rx - fx0, ry - fy0);
-            let at = |xx: f32, yy: f32| {
-                gray[(yy.clamp(0.0, ph as f32 - 1.0) as usize) * pw
-                    + xx.clamp(0.0, pw as f32 - 1.0) as usize]
-            };
-            let v = (at(fx0, fy0) * (1.0 - fx) + at(fx0 + 1.0, fy0) * fx) * (1.0 - fy)
-                + (at(fx0, fy0 + 1.0) * (1.0 - fx) + at(fx0 + 1.0, fy0 + 1.0) * fx) * fy;
+            let v = crate::image::bilinear(pw as u32, ph as u32, rx, ry, |i| gray[i]);
             canvas.set(x as u32, y as u32, black + (white - black) * v);
         }
     }
@@ -643,21 +605,9 @@ fn marker_truth(
         roi: family.roi_points().iter().map(|&p| project(p)).collect(),
         keypoints,
         mask,
-        pose: placement.pose.map(|(pose, side_m)| {
-            let r = pose.rotation.matrix();
-            PoseTruth {
-                rotation: [
-                    [r[(0, 0)], r[(0, 1)], r[(0, 2)]],
-                    [r[(1, 0)], r[(1, 1)], r[(1, 2)]],
-                    [r[(2, 0)], r[(2, 1)], r[(2, 2)]],
-                ],
-                translation_m: [
-                    pose.translation[0],
-                    pose.translation[1],
-                    pose.translation[2],
-                ],
-                side_m,
-            }
+        pose: placement.pose.map(|(pose, side_m)| PoseTruth {
+            pose: PoseJson::from(&pose),
+            side_m,
         }),
     }
 }

@@ -41,12 +41,7 @@ fn mean_dot_error(k1: Option<f64>, view_deg: f64) -> (f64, usize) {
         let img = &s.image;
         let cam = s.truth.camera.unwrap();
         let p = m.pose.as_ref().unwrap();
-        let pose = Pose {
-            rotation: Rotation3::from_matrix_unchecked(nalgebra::Matrix3::from_fn(|i, j| {
-                p.rotation[i][j]
-            })),
-            translation: Vector3::from(p.translation_m),
-        };
+        let pose = Pose::from(&p.pose);
         let pixel = |u: [f64; 2]| {
             let q = marker_plane_points(&f, p.side_m, &[u])[0];
             cam.project(pose.apply([q[0], q[1], 0.0]))
@@ -133,11 +128,7 @@ fn camera_mode_records_the_pose_that_projects_the_roi() {
     let cam = s.truth.camera.unwrap();
     for m in &s.truth.markers {
         let p = m.pose.as_ref().unwrap();
-        let r = nalgebra::Matrix3::from_fn(|i, j| p.rotation[i][j]);
-        let pose = Pose {
-            rotation: Rotation3::from_matrix_unchecked(r),
-            translation: Vector3::from(p.translation_m),
-        };
+        let pose = Pose::from(&p.pose);
         let plane = marker_plane_points(&f, p.side_m, &f.roi_points()[..4]);
         for (q, truth) in plane.iter().zip(&m.roi) {
             let px = cam.project(pose.apply([q[0], q[1], 0.0]));

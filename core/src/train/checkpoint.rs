@@ -5,8 +5,8 @@
 
 use super::validate::Metrics;
 use super::TrainConfig;
-use crate::detect::model_file;
-use crate::detect::net::{NetConfig, Stage2Net};
+use crate::detect::stage2::model_file;
+use crate::detect::stage2::net::{NetConfig, Stage2Net};
 use crate::family::Family;
 use burn::optim::ModuleOptimizer;
 use burn::tensor::{Bytes, Device};

@@ -7,10 +7,10 @@
 //! resumed at step s sees exactly the batches an uninterrupted run would have seen: the data
 //! stream's "random state" is the next sample index.
 
-use crate::detect::anchors::{encode, PatchSpec, Targets};
-use crate::detect::normalise_patch;
+use crate::detect::stage2::anchors::{encode, PatchSpec, Targets};
+use crate::detect::stage2::normalise_patch;
 use crate::family::Family;
-use crate::geometry::GrayImage;
+use crate::image::GrayImage;
 use crate::synth::{image_seed, synthesize, KeypointTruth, MarkerTruth, Mode, SynthConfig};
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};

@@ -3,9 +3,9 @@
 //! mask, smooth-L1 on the template head.
 
 use super::data::PatchSample;
-use crate::detect::anchors::IGNORE;
-use crate::detect::net::Outputs;
-use crate::detect::stage2::template_flat;
+use crate::detect::stage2::anchors::IGNORE;
+use crate::detect::stage2::net::Outputs;
+use crate::detect::stage2::pipeline::template_flat;
 use burn::tensor::activation::{log_softmax, sigmoid};
 use burn::tensor::{Device, Tensor, TensorData};
 

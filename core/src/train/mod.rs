@@ -6,17 +6,17 @@
 //!
 //! **Output folder.** `checkpoint.bin` (model + optimiser state + step, rewritten atomically every
 //! `checkpoint_every` steps, so a killed run loses at most that many steps), `model.bin` (the
-//! final weights, the format of [`crate::detect::model_file`]) and `report.json`.
+//! final weights, the format of [`crate::detect::stage2::model_file`]) and `report.json`.
 
 mod checkpoint;
 pub mod data;
 pub mod loss;
 pub mod validate;
 
-use crate::detect::anchors::PatchSpec;
-use crate::detect::model_file;
-use crate::detect::net::{macs, NetConfig, Stage2Net};
-use crate::detect::stage2::raw_outputs;
+use crate::detect::stage2::anchors::PatchSpec;
+use crate::detect::stage2::model_file;
+use crate::detect::stage2::net::{macs, NetConfig, Stage2Net};
+use crate::detect::stage2::pipeline::raw_outputs;
 use crate::family::Family;
 use burn::module::Module;
 use burn::optim::{AdamConfig, GradientsParams};

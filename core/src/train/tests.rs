@@ -2,8 +2,8 @@ use super::data::make_sample;
 use super::loss::{losses, Batch};
 use super::{train, Event, TrainConfig};
 use crate::builtin;
-use crate::detect::anchors::PatchSpec;
-use crate::detect::net::NetConfig;
+use crate::detect::stage2::anchors::PatchSpec;
+use crate::detect::stage2::net::NetConfig;
 use crate::detect::stage2::Stage2;
 use crate::synth::image_seed;
 use burn::optim::{AdamConfig, GradientsParams};
@@ -130,7 +130,8 @@ fn training_resumes_from_its_checkpoint() {
             .unwrap()
     };
     let (oa, ob, oc) = (outputs(&a), outputs(&b), outputs(&c));
-    let diff = |x: &crate::detect::anchors::RawOutputs, y: &crate::detect::anchors::RawOutputs| {
+    let diff = |x: &crate::detect::stage2::anchors::RawOutputs,
+                y: &crate::detect::stage2::anchors::RawOutputs| {
         x.offsets
             .iter()
             .flatten()

@@ -2,10 +2,8 @@
 //! compare across runs): keypoint recall, symbol accuracy, ID accuracy and keypoint error.
 
 use super::data::{make_sample, PatchSample};
-use crate::codebook::decode_soft;
-use crate::detect::anchors::{extract, PatchSpec, RawOutputs};
-use crate::detect::sort::{read_slots, sort_to_template};
-use crate::detect::stage2::MIN_CONFIDENCE;
+use crate::detect::stage2::anchors::{PatchSpec, RawOutputs};
+use crate::detect::stage2::decode::read_patch;
 use crate::family::Family;
 use crate::synth::image_seed;
 use serde::{Deserialize, Serialize};
@@ -55,17 +53,16 @@ pub fn score(
     let mut errors = Vec::new();
     for (sample, raw) in set.iter().zip(raw) {
         let truth = &sample.truth;
-        let found = extract(spec, raw, MIN_CONFIDENCE);
         let regressed = family.regressed_keypoints();
         visible += regressed
             .iter()
             .filter(|&&k| truth.keypoints[k].visible)
             .count();
-        let Some(sorted) = sort_to_template(family, &found, &raw.template_corners(spec)) else {
+        let Some(reading) = read_patch(family, spec, raw) else {
             continue;
         };
-        let (read, reliability) = read_slots(family, &sorted, &found);
-        match decode_soft(family, &read, &reliability, None) {
+        let (found, sorted, read) = (&reading.found, &reading.sorted, &reading.read);
+        match reading.decoded {
             Some(d) if d.id == truth.id => right_id += 1,
             Some(_) => wrong_id += 1,
             None => {}

@@ -75,7 +75,7 @@ pub(super) fn show(studio: &mut Studio, ui: &mut Ui) {
         {
             let f = family.as_ref().expect("enabled only when valid");
             let s = &studio.designer.codegen;
-            let mut params = GenerateParams::for_family(f, s.min_distance);
+            let mut params = f.generate_params(s.min_distance);
             params.max_codes = s.count;
             params.seed = s.seed;
             params.max_candidates = default_budget();

@@ -7,7 +7,6 @@ use super::files::Purpose;
 use super::preview::{self, category_colour, MarkerView};
 use super::Studio;
 use egui::{Color32, Pos2, Sense, Stroke, Ui};
-use tagsmith::codebook::GenerateParams;
 use tagsmith::family::edit::{CellValue, Edit};
 use tagsmith::family::spec::ExtraKeypoint as ExtraKeypointSpec;
 use tagsmith::family::spec::{KeypointSet, Layout, Primitive, Role, Shape};
@@ -175,7 +174,7 @@ fn controls(studio: &mut Studio, ui: &mut Ui) {
         ui.colored_label(ui.visuals().error_fg_color, p.as_str());
     }
     if let Ok(f) = design.validation() {
-        for w in f.warnings() {
+        for w in tagsmith::render::readback::warnings(f) {
             ui.colored_label(ui.visuals().warn_fg_color, format!("note: {w}"));
         }
     }

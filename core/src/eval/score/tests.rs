@@ -1,7 +1,7 @@
 use super::super::set::{generate, load, run_detector, BenchImage, SetParams};
-use super::super::{Detector, ImageDetections};
 use super::*;
-use crate::geometry::GrayImage;
+use crate::detect::{Detector, ImageDetections};
+use crate::image::GrayImage;
 use crate::synth::Truth;
 
 fn family() -> Family {
@@ -23,18 +23,7 @@ fn small_set(dir: &std::path::Path) -> BenchmarkSet {
 
 /// Reports the truth: the perfect detector.
 fn oracle(img: &BenchImage, with_pose: bool) -> Vec<Detection> {
-    img.truth
-        .markers
-        .iter()
-        .map(|m| Detection {
-            id: m.id,
-            corners: [m.roi[0], m.roi[1], m.roi[2], m.roi[3]],
-            pose: m.pose.as_ref().filter(|_| with_pose).map(|p| PoseJson {
-                rotation: p.rotation,
-                translation_m: p.translation_m,
-            }),
-        })
-        .collect()
+    img.truth_detections(with_pose)
 }
 
 fn detections(
@@ -98,7 +87,7 @@ fn the_ground_truth_scores_full_recall_and_no_error() {
             a.truth.markers[0].pose.as_ref().unwrap(),
             b.truth.markers[0].pose.as_ref().unwrap(),
         );
-        assert!((0..3).all(|i| (pa.translation_m[i] - pb.translation_m[i]).abs() < 1e-12));
+        assert!((0..3).all(|i| (pa.pose.translation_m[i] - pb.pose.translation_m[i]).abs() < 1e-12));
     }
     let f = family();
     for with_pose in [true, false] {
@@ -223,12 +212,12 @@ fn in_process_detectors_run_over_the_images_on_disk() {
         .iter()
         .map(|img| {
             (
-                super::super::set::read_gray_png(&dir.path().join(&img.file)).unwrap(),
+                crate::image::read(&dir.path().join(&img.file), &Default::default()).unwrap(),
                 oracle(img, false),
             )
         })
         .collect();
-    let file = run_detector(dir.path(), &set, &mut Lookup(table)).unwrap();
+    let file = run_detector(dir.path(), &set, &mut Lookup(table), &|_| true).unwrap();
     assert_eq!(file.images.len(), set.images.len());
     assert_eq!(
         all_rows(&score(&set, Some(&family()), &file).unwrap()).recall,

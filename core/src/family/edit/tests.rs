@@ -1,5 +1,5 @@
 use super::*;
-use crate::codebook::{generate, GenerateParams};
+use crate::codebook::generate;
 use crate::family::Family;
 
 fn spec(name: &str) -> FamilySpec {
@@ -8,7 +8,7 @@ fn spec(name: &str) -> FamilySpec {
 
 fn generate_codes(s: &FamilySpec, d: u32, count: usize) -> CodebookSpec {
     let family = Family::from_spec(s.clone()).unwrap();
-    let mut p = GenerateParams::for_family(&family, d);
+    let mut p = family.generate_params(d);
     p.max_codes = count;
     let r = generate(&p, &mut |_, _| {}).unwrap();
     r.codebook.to_spec(r.achieved_min_distance, "test")

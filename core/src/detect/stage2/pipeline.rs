@@ -3,22 +3,19 @@
 //! more from the ROI the first pass's keypoints give (DESIGN §5: the paper's result is stable
 //! after two iterations).
 
-use super::anchors::{extract, PatchSpec, RawOutputs};
+use super::anchors::{PatchSpec, RawOutputs};
+use super::decode::read_patch;
 use super::model_file::{self, ModelError, ModelHeader};
 use super::net::{NetConfig, Outputs, Stage2Net};
 use super::normalise_patch;
-use super::sort::{read_slots, sort_to_template};
-use crate::codebook::decode_soft;
 use crate::family::{Assignment, Family};
-use crate::geometry::{warp_bilinear, Camera, GrayImage, Homography};
+use crate::geometry::{warp_bilinear, Camera, Homography};
+use crate::image::GrayImage;
 use crate::pose::{marker_plane_points, solve_planar, PnpSolution};
 use burn::tensor::activation::softmax;
 use burn::tensor::{Device, Tensor, TensorData};
 use serde::Serialize;
 use std::path::Path;
-
-/// Anchors whose best symbol probability is below this are background (the reference's 0.3).
-pub const MIN_CONFIDENCE: f64 = 0.3;
 
 /// A loaded model, ready to run on patches and images.
 pub struct Stage2 {
@@ -152,11 +149,9 @@ impl Stage2 {
     /// Post-processing of one patch's outputs; `to_image` maps patch pixels to the image.
     pub fn decode_patch(&self, raw: &RawOutputs, to_image: &Homography) -> Option<Stage2Result> {
         let family = &self.family;
-        let found = extract(&self.spec, raw, MIN_CONFIDENCE);
-        let corners = raw.template_corners(&self.spec);
-        let sorted = sort_to_template(family, &found, &corners)?;
-        let (read, reliability) = read_slots(family, &sorted, &found);
-        let decoded = decode_soft(family, &read, &reliability, None)?;
+        let reading = read_patch(family, &self.spec, raw)?;
+        let decoded = reading.decoded?;
+        let (found, sorted, read) = (&reading.found, &reading.sorted, &reading.read);
         let rotation = &family.rotations()[decoded.rotation];
         let kps = family.keypoints();
         let keypoints: Vec<DetectedKeypoint> = (0..kps.len())

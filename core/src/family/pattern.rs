@@ -1,11 +1,12 @@
-//! Category patterns as vector paths in cell-local coordinates (the cell is [-0.5, 0.5]², y down).
+//! Category patterns, the local patterns of the family model, as vector paths in cell-local
+//! coordinates (the cell is [-0.5, 0.5]², y down).
 //!
 //! Every primitive shape of the family format becomes one [`Path`], so that SVG, PDF and raster
 //! output draw exactly the same geometry.
 
+use super::spec::{Category, Primitive, Role, Shape};
+use super::Problem;
 use crate::color::Rgb;
-use crate::family::spec::{Category, Primitive, Role, Shape};
-use crate::family::Problem;
 
 /// Path segments with absolute coordinates.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -1,7 +1,7 @@
 use super::anchors::{encode, extract, PatchSpec, RawOutputs};
 use super::sort::{observed, read_slots, sort_to_template};
 use crate::builtin;
-use crate::codebook::{decode, decode_soft};
+use crate::family::{decode, decode_soft};
 use crate::synth::{synthesize, KeypointTruth, Mode, SynthConfig};
 
 /// Turns patch coordinates by 90° clockwise (y down) `quarter` times, as rotating the patch's

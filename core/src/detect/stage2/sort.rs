@@ -118,7 +118,7 @@ pub fn slot_categories(family: &Family) -> Vec<Vec<usize>> {
 }
 
 /// The category read at every family keypoint (None where nothing matched), for
-/// [`crate::codebook::decode`]: the most voted category among those the slot admits, so a data
+/// [`crate::family::decode`]: the most voted category among those the slot admits, so a data
 /// cell is read as the more likely of the symbols even when the network finds it closer to the
 /// frame's look.
 pub fn observed(family: &Family, sorted: &Sorted, found: &[Found]) -> Vec<Option<usize>> {
@@ -126,7 +126,7 @@ pub fn observed(family: &Family, sorted: &Sorted, found: &[Found]) -> Vec<Option
 }
 
 /// [`observed`] and, per slot, the read category's share of the votes of the categories the slot
-/// admits (0 where nothing matched): the reliability [`crate::codebook::decode_soft`] erases by.
+/// admits (0 where nothing matched): the reliability [`crate::family::decode_soft`] erases by.
 pub fn read_slots(
     family: &Family,
     sorted: &Sorted,

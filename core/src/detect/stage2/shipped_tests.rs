@@ -2,11 +2,10 @@
 //! with sensor noise and blur, found from a rough ROI.
 
 use super::shipped_model;
-use super::stage2::Stage2;
+use super::Stage2;
 use crate::builtin;
 use crate::pose::Pose;
 use crate::synth::{synthesize, Mode, SynthConfig};
-use nalgebra::{Matrix3, Rotation3, Vector3};
 
 #[test]
 fn shipped_36h11_weights_decode_a_noisy_marker_and_its_pose() {
@@ -40,10 +39,7 @@ fn decodes_noisy_markers(name: &str) {
         let truth = &sample.truth.markers[0];
         let camera = sample.truth.camera.unwrap();
         let t = truth.pose.as_ref().unwrap();
-        let expected = Pose {
-            rotation: Rotation3::from_matrix_unchecked(Matrix3::from_fn(|i, j| t.rotation[i][j])),
-            translation: Vector3::from(t.translation_m),
-        };
+        let expected = Pose::from(&t.pose);
         // A stage-1-like ROI: each corner off by up to 4 % of the side, starting at another
         // corner (the marker appears turned).
         let side = (truth.roi[1][0] - truth.roi[0][0]).hypot(truth.roi[1][1] - truth.roi[0][1]);

@@ -2,8 +2,8 @@
 //! `readDictionary` / `aruco::Dictionary::readDictionary`), so that a printed family can be
 //! detected with OpenCV as well.
 
+use super::readback::Reader;
 use crate::family::{Assignment, Family};
-use crate::render::readback::Reader;
 use std::fmt::Write;
 
 /// The YAML text of an OpenCV dictionary: `nmarkers`, `markersize`, `maxCorrectionBits` and one

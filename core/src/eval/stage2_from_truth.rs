@@ -1,0 +1,84 @@
+//! Stage 2 measured on its own: each true ROI of an image moved by stage-1-like noise, then read
+//! by the stage-2 pipeline — a [`Detector`] the harness's runner times like any other.
+
+use crate::detect::stage2::Stage2;
+use crate::detect::{Detection, Detector};
+use crate::geometry::Camera;
+use crate::image::GrayImage;
+use crate::pose::PoseJson;
+use crate::synth::Truth;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+pub struct Stage2FromTruth {
+    model: Stage2,
+    /// Each ROI corner moves by up to this fraction of the marker side in x and y (uniform).
+    roi_noise: f64,
+    iterations: usize,
+    camera: Camera,
+    side_m: f64,
+    rng: ChaCha8Rng,
+    rois: Vec<[[f64; 2]; 4]>,
+}
+
+impl Stage2FromTruth {
+    pub fn new(
+        model: Stage2,
+        roi_noise: f64,
+        iterations: usize,
+        camera: Camera,
+        side_m: f64,
+        seed: u64,
+    ) -> Self {
+        Self {
+            model,
+            roi_noise,
+            iterations,
+            camera,
+            side_m,
+            rng: ChaCha8Rng::seed_from_u64(seed),
+            rois: Vec::new(),
+        }
+    }
+}
+
+impl Detector for Stage2FromTruth {
+    fn name(&self) -> String {
+        format!(
+            "tagsmith-stage2 ({} passes, ROI noise ±{} side)",
+            self.iterations, self.roi_noise
+        )
+    }
+
+    fn observe_truth(&mut self, truth: &Truth) {
+        let rng = &mut self.rng;
+        let noise = self.roi_noise;
+        self.rois = truth
+            .markers
+            .iter()
+            .map(|m| {
+                let side = (m.roi[1][0] - m.roi[0][0]).hypot(m.roi[1][1] - m.roi[0][1]);
+                let r = noise * side;
+                std::array::from_fn(|j| {
+                    [
+                        m.roi[j][0] + rng.random_range(-r..=r),
+                        m.roi[j][1] + rng.random_range(-r..=r),
+                    ]
+                })
+            })
+            .collect();
+    }
+
+    fn detect(&mut self, image: &GrayImage) -> Vec<Detection> {
+        let camera = Some((&self.camera, self.side_m));
+        self.rois
+            .iter()
+            .filter_map(|roi| self.model.detect(image, roi, self.iterations, camera))
+            .map(|d| Detection {
+                id: d.id,
+                corners: d.corners,
+                pose: d.pose.map(|p| PoseJson::from(&p.pose)),
+            })
+            .collect()
+    }
+}

@@ -1,0 +1,112 @@
+//! The gray image every stage works on, and the only way pixels enter or leave Tagsmith: reading
+//! users' files (PNG, JPEG, BMP, TIFF, WebP, PNM) with bounded decoding, writing PNG, the one
+//! luminance conversion and the one bilinear sampler.
+//!
+//! Conventions: 8-bit gray, row-major; pixel centres at integer coordinates (as OpenCV's warps).
+
+mod read;
+mod write;
+
+pub use read::{decode, read, ImageError, ImageErrorKind, Limits};
+pub use write::encode_png;
+
+/// An 8-bit grayscale image, row-major.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct GrayImage {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<u8>,
+}
+
+impl GrayImage {
+    pub fn new(width: u32, height: u32, fill: u8) -> Self {
+        Self {
+            width,
+            height,
+            pixels: vec![fill; width as usize * height as usize],
+        }
+    }
+
+    pub fn get(&self, x: u32, y: u32) -> u8 {
+        self.pixels[y as usize * self.width as usize + x as usize]
+    }
+
+    /// Bilinear sample (see [`bilinear`]), in gray levels 0–255.
+    pub fn sample(&self, x: f32, y: f32) -> f32 {
+        bilinear(self.width, self.height, x, y, |i| self.pixels[i] as f32)
+    }
+}
+
+/// Relative luminance weights of Rec. 709 / sRGB, applied to the encoded (gamma) values. The
+/// synthesiser converts rendered colours with them, so a photograph read here looks to the
+/// detector as its training images did; they are also the `image` crate's and the web's weights.
+pub const LUMA_WEIGHTS: [f32; 3] = [0.2126, 0.7152, 0.0722];
+
+/// Luminance of an encoded RGB colour, each channel in any common unit (0–1 or 0–255): the result
+/// is in the same unit.
+#[inline]
+pub fn luminance(r: f32, g: f32, b: f32) -> f32 {
+    LUMA_WEIGHTS[0] * r + LUMA_WEIGHTS[1] * g + LUMA_WEIGHTS[2] * b
+}
+
+/// Interpolates the four pixels around a point: `top_left`, `top_right`, `bottom_left`,
+/// `bottom_right`, with `fx`, `fy` its fractional position between them.
+#[inline]
+pub fn mix(
+    top_left: f32,
+    top_right: f32,
+    bottom_left: f32,
+    bottom_right: f32,
+    fx: f32,
+    fy: f32,
+) -> f32 {
+    let top = top_left * (1.0 - fx) + top_right * fx;
+    let bottom = bottom_left * (1.0 - fx) + bottom_right * fx;
+    top * (1.0 - fy) + bottom * fy
+}
+
+/// The bilinear sampler: the value at (`x`, `y`) of a `width` × `height` grid whose value at
+/// row-major index `i` is `at(i)`. Positions outside the grid take the nearest edge (the point is
+/// clamped first), so a sample never reads out of bounds.
+#[inline]
+pub fn bilinear(width: u32, height: u32, x: f32, y: f32, at: impl Fn(usize) -> f32) -> f32 {
+    let (w, h) = (width as f32 - 1.0, height as f32 - 1.0);
+    let (x, y) = (x.clamp(0.0, w), y.clamp(0.0, h));
+    let (x0, y0) = (x.floor(), y.floor());
+    let (fx, fy) = (x - x0, y - y0);
+    let (x1, y1) = ((x0 + 1.0).min(w), (y0 + 1.0).min(h));
+    let stride = width as usize;
+    let idx = |xx: f32, yy: f32| yy as usize * stride + xx as usize;
+    mix(
+        at(idx(x0, y0)),
+        at(idx(x1, y0)),
+        at(idx(x0, y1)),
+        at(idx(x1, y1)),
+        fx,
+        fy,
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bilinear_interpolates_inside_and_clamps_outside() {
+        // 3 × 2 grid: 0 10 20 / 30 40 50
+        let grid = [0.0, 10.0, 20.0, 30.0, 40.0, 50.0];
+        let at = |i: usize| grid[i];
+        assert_eq!(bilinear(3, 2, 1.0, 1.0, at), 40.0);
+        assert_eq!(bilinear(3, 2, 0.5, 0.5, at), 20.0);
+        assert_eq!(bilinear(3, 2, 1.5, 0.0, at), 15.0);
+        assert_eq!(bilinear(3, 2, -4.0, -1.0, at), 0.0);
+        assert_eq!(bilinear(3, 2, 9.0, 9.0, at), 50.0);
+    }
+
+    #[test]
+    fn luminance_weights_sum_to_one_and_green_weighs_most() {
+        assert!((luminance(1.0, 1.0, 1.0) - 1.0).abs() < 1e-6);
+        assert!(luminance(0.0, 1.0, 0.0) > luminance(1.0, 0.0, 0.0));
+        assert!(luminance(1.0, 0.0, 0.0) > luminance(0.0, 0.0, 1.0));
+    }
+}
