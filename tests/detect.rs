@@ -272,3 +272,161 @@ fn training_resumes_after_kill_9() {
     );
     assert_eq!(report["steps"], 60);
 }
+
+/// One marker of the sample photograph (see assets/samples/README.md), clockwise.
+const SWARMATHON_ROI: &str = "329.95,442.66,286.03,446.36,285.24,402.35,328.57,398.87";
+
+fn sample(name: &str) -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../assets/samples")
+        .join(name)
+}
+
+#[test]
+fn a_jpeg_photograph_decodes_as_the_png_of_the_same_pixels() {
+    let dir = tempfile::tempdir().unwrap();
+    let jpeg = sample("apriltag-36h11-swarmathon.jpg");
+    let gray = tagsmith::image::read(&jpeg, &Default::default()).unwrap();
+    assert_eq!((gray.width, gray.height), (799, 533));
+    std::fs::write(
+        dir.path().join("same.png"),
+        tagsmith::image::encode_png(&gray).unwrap(),
+    )
+    .unwrap();
+    let detect = |image: &str| {
+        let run = tagsmith(
+            dir.path(),
+            &[
+                "detect",
+                image,
+                "--family",
+                "apriltag-36h11",
+                "--roi",
+                SWARMATHON_ROI,
+            ],
+        );
+        run.ok();
+        serde_json::from_str::<serde_json::Value>(&run.stdout).unwrap()
+    };
+    let from_jpeg = detect(jpeg.to_str().unwrap());
+    assert_eq!(from_jpeg["id"], 0, "{from_jpeg}");
+    assert_eq!(from_jpeg, detect("same.png"));
+}
+
+/// Runs `tagsmith` under GNU time (where the machine has it) and returns the run with its peak
+/// resident memory in MB.
+fn tagsmith_measured(dir: &std::path::Path, args: &[&str]) -> (Run, Option<f64>) {
+    let time = std::path::Path::new("/usr/bin/time");
+    if !time.exists() {
+        return (tagsmith(dir, args), None);
+    }
+    let out = std::process::Command::new(time)
+        .args(["-f", "peak-kb %M"])
+        .arg(env!("CARGO_BIN_EXE_tagsmith"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr).to_string();
+    let peak = stderr
+        .lines()
+        .rev()
+        .find_map(|l| l.strip_prefix("peak-kb "))
+        .and_then(|v| v.trim().parse::<f64>().ok())
+        .map(|kb| kb / 1024.0);
+    let run = Run {
+        code: out.status.code().unwrap_or(-1),
+        stdout: String::from_utf8_lossy(&out.stdout).into(),
+        stderr,
+    };
+    (run, peak)
+}
+
+/// A PNG signature and IHDR chunk (CRC included) claiming `width` × `height` 8-bit gray, and
+/// nothing else.
+fn png_header(width: u32, height: u32) -> Vec<u8> {
+    let mut ihdr = b"IHDR".to_vec();
+    ihdr.extend(width.to_be_bytes());
+    ihdr.extend(height.to_be_bytes());
+    ihdr.extend([8, 0, 0, 0, 0]);
+    let mut out = b"\x89PNG\r\n\x1a\n".to_vec();
+    out.extend(13u32.to_be_bytes());
+    out.extend(&ihdr);
+    out.extend(crc32(&ihdr).to_be_bytes());
+    out
+}
+
+fn crc32(bytes: &[u8]) -> u32 {
+    let mut crc = !0u32;
+    for &b in bytes {
+        crc ^= b as u32;
+        for _ in 0..8 {
+            crc = if crc & 1 == 1 { (crc >> 1) ^ 0xEDB8_8320 } else { crc >> 1 };
+        }
+    }
+    !crc
+}
+
+#[test]
+fn oversized_images_are_refused_before_decoding_in_bounded_time_and_memory() {
+    let dir = tempfile::tempdir().unwrap();
+    let claimed = png_header(40_000, 40_000);
+    assert!(claimed.len() <= 60);
+    std::fs::write(dir.path().join("claims.png"), &claimed).unwrap();
+    // A real, complete 20000 × 20000 PNG (black; it compresses to about 400 KB).
+    {
+        let file = std::fs::File::create(dir.path().join("huge.png")).unwrap();
+        let mut enc = png::Encoder::new(std::io::BufWriter::new(file), 20_000, 20_000);
+        enc.set_color(png::ColorType::Grayscale);
+        enc.set_compression(png::Compression::Fast);
+        let mut writer = enc.write_header().unwrap();
+        let mut stream = writer.stream_writer().unwrap();
+        let row = vec![0u8; 20_000];
+        for _ in 0..20_000 {
+            std::io::Write::write_all(&mut stream, &row).unwrap();
+        }
+        stream.finish().unwrap();
+    }
+    for (file, size) in [("claims.png", "40000×40000"), ("huge.png", "20000×20000")] {
+        let started = std::time::Instant::now();
+        let (run, peak_mb) = tagsmith_measured(
+            dir.path(),
+            &["detect", file, "--family", "apriltag-36h11", "--roi", SWARMATHON_ROI],
+        );
+        let seconds = started.elapsed().as_secs_f64();
+        assert_eq!(run.code, 2, "{file}: {}", run.stderr);
+        assert!(run.stderr.contains(size), "{file}: {}", run.stderr);
+        assert!(run.stderr.contains("64.0 megapixels"), "{file}: {}", run.stderr);
+        assert_eq!(run.stderr.matches(file).count(), 1, "{}", run.stderr);
+        assert!(seconds < 5.0, "{file}: {seconds:.1} s");
+        if let Some(mb) = peak_mb {
+            assert!(mb < 512.0, "{file}: peak {mb:.0} MB");
+        }
+    }
+    // The limit can be raised: then the header-only file is refused as truncated instead.
+    let run = tagsmith(
+        dir.path(),
+        &[
+            "detect", "claims.png", "--family", "apriltag-36h11", "--roi", SWARMATHON_ROI,
+            "--max-pixels", "2000000000",
+        ],
+    );
+    assert_eq!(run.code, 2, "{}", run.stderr);
+    assert!(run.stderr.contains("corrupt or truncated"), "{}", run.stderr);
+}
+
+#[test]
+fn a_truncated_or_non_image_file_is_bad_input_named_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let jpeg = std::fs::read(sample("apriltag-36h11-swarmathon.jpg")).unwrap();
+    std::fs::write(dir.path().join("cut.jpg"), &jpeg[..jpeg.len() / 3]).unwrap();
+    std::fs::write(dir.path().join("notes.png"), b"not an image at all").unwrap();
+    for file in ["cut.jpg", "notes.png"] {
+        let run = tagsmith(
+            dir.path(),
+            &["detect", file, "--family", "apriltag-36h11", "--roi", SWARMATHON_ROI],
+        );
+        assert_eq!(run.code, 2, "{file}: {}", run.stderr);
+        assert_eq!(run.stderr.matches(file).count(), 1, "{}", run.stderr);
+    }
+}
