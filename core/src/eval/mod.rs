@@ -1,4 +1,5 @@
-//! The evaluation harness (DESIGN §7): a benchmark set rendered once to disk ([`set`]), detectors
+//! The evaluation harness (docs/ARCHITECTURE.md §11): a benchmark set rendered once to disk
+//! ([`set`]), detectors
 //! run on it through one interface or read from a JSON file of detections, and scoring the way
 //! the DeepTag paper does ([`score`]).
 //!

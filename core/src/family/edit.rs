@@ -74,7 +74,8 @@ pub enum Edit {
     SetCodebook(CodebookSpec),
     SetMarkerSide(f64),
     SetPrintLabels(bool),
-    /// How far beyond the ROI the rectified template reaches (DESIGN §2, a = 0.15 by default).
+    /// How far beyond the ROI the rectified template reaches (docs/ARCHITECTURE.md §6.3, a = 0.15
+    /// by default).
     SetRoiMargin(f64),
 }
 

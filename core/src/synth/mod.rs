@@ -1,4 +1,5 @@
-//! On-the-fly training images with exact ground truth (DESIGN §4), deterministic per seed.
+//! On-the-fly training images with exact ground truth (docs/ARCHITECTURE.md §8), deterministic per
+//! seed.
 //!
 //! Three modes: `quad` (stage-1 scenes, markers placed by random quadrilaterals), `camera` (a
 //! pinhole camera at a random 6-DoF pose; ground-truth pose included) and `patch` (stage-2 patches:

@@ -1,4 +1,5 @@
-//! Stage-2 losses (DESIGN §5): softmax confidence over positives and hard negatives (the SSD
+//! Stage-2 losses (docs/ARCHITECTURE.md §10.2): softmax confidence over positives and hard
+//! negatives (the SSD
 //! recipe, 3 negatives per positive), smooth-L1 on the offsets of positive anchors, L2 on the
 //! mask, smooth-L1 on the template head.
 
