@@ -1,7 +1,6 @@
 //! The evaluation harness (docs/ARCHITECTURE.md §11): a benchmark set rendered once to disk
-//! ([`set`]), detectors
-//! run on it through one interface or read from a JSON file of detections, and scoring the way
-//! the DeepTag paper does ([`score`]).
+//! ([`set`]), detectors run on it through one interface or read from a JSON file of detections, and
+//! scoring the way the DeepTag paper does ([`score`]).
 //!
 //! **Detections file** (what external detectors write; corners in Tagsmith's convention: the
 //! family's ROI points in order — TL, TR, BR, BL of the outer black square as OpenCV renders the

@@ -1,7 +1,6 @@
 //! The rectified template: a marker as stage 2 sees it, warped so that the ROI's first four points
 //! land on a square inset by the ROI margin a (docs/ARCHITECTURE.md §6.3, §9.1). The designer shows
-//! it beside the
-//! marker so a user sees what the detector will be given.
+//! it beside the marker so a user sees what the detector will be given.
 
 use super::raster::{gray_at, rasterize};
 use super::scene::{marker_scene, RenderError, SceneOptions};

@@ -1,7 +1,6 @@
 //! Stage-2 losses (docs/ARCHITECTURE.md §10.2): softmax confidence over positives and hard
-//! negatives (the SSD
-//! recipe, 3 negatives per positive), smooth-L1 on the offsets of positive anchors, L2 on the
-//! mask, smooth-L1 on the template head.
+//! negatives (the SSD recipe, 3 negatives per positive), smooth-L1 on the offsets of positive
+//! anchors, L2 on the mask, smooth-L1 on the template head.
 
 use super::data::PatchSample;
 use crate::detect::stage2::anchors::IGNORE;

@@ -1,7 +1,7 @@
 //! Training the stage-2 keypoint network (docs/ARCHITECTURE.md §10): burn with autodiff on the
-//! `flex` CPU
-//! backend, Adam at lr 1e-3, patches synthesised by worker threads ahead of the optimiser,
-//! periodic validation on a fixed seeded set, atomic checkpoints, resume, and a JSON report.
+//! `flex` CPU backend, Adam at lr 1e-3, patches synthesised by worker threads ahead of the
+//! optimiser, periodic validation on a fixed seeded set, atomic checkpoints, resume, and a JSON
+//! report.
 //!
 //! Progress is a stream of [`Event`]s; the CLI draws them as a progress bar.
 //!

@@ -5,12 +5,11 @@
 //! **Patch geometry.** The patch is `size`² pixels (pixel centres at integer coordinates); the ROI
 //! maps to the template square with corners at `margin · size` and `(1 − margin) · size`
 //! (docs/ARCHITECTURE.md §9.1: a = 0.15). The default is 128 px at stride 4 (a 32 × 32 anchor
-//! grid): the densest
-//! built-in grid, 10 × 10 cells with its border, then has a cell pitch of 0.7 · 128 / 10 = 8.96 px
-//! = 2.24 anchors on the template square, and 36h11's 8 × 8 grid 11.2 px = 2.8 anchors. The
-//! paper's 256 px at stride 8 gives the same 2.2–2.8 anchors per pitch at four times the pixels;
-//! halving both keeps the anchor spacing and cuts the compute by four, which is what lets the
-//! model train on two CPU cores. (Training quads with a_i near 0.25 on both sides shrink the
+//! grid): the densest built-in grid, 10 × 10 cells with its border, then has a cell pitch of 0.7 ·
+//! 128 / 10 = 8.96 px = 2.24 anchors on the template square, and 36h11's 8 × 8 grid 11.2 px = 2.8
+//! anchors. The paper's 256 px at stride 8 gives the same 2.2–2.8 anchors per pitch at four times
+//! the pixels; halving both keeps the anchor spacing and cuts the compute by four, which is what
+//! lets the model train on two CPU cores. (Training quads with a_i near 0.25 on both sides shrink the
 //! marker to 0.5 of the patch: 1.6 anchors per pitch for 10 × 10, 2.0 for 8 × 8.)
 
 use crate::synth::KeypointTruth;

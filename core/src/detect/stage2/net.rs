@@ -1,8 +1,8 @@
 //! The stage-2 network (docs/ARCHITECTURE.md §9.2): a MobileNet-style depthwise-separable trunk to
-//! stride 4 on a
-//! 128² patch (the reference: stride 8 on 256², the same anchors per cell pitch), a mask head whose
-//! output is concatenated back onto the features (the reference's "align"), a one-scale anchor
-//! predictor (C + 1 class logits and a 2-D offset per anchor) and the 2 × 2 template predictor.
+//! stride 4 on a 128² patch (the reference: stride 8 on 256², the same anchors per cell pitch), a
+//! mask head whose output is concatenated back onto the features (the reference's "align"), a
+//! one-scale anchor predictor (C + 1 class logits and a 2-D offset per anchor) and the 2 × 2
+//! template predictor.
 //!
 //! Sizes are chosen for two CPU cores: the reference runs five 512-channel blocks at stride 8
 //! (1.76 M parameters, 1.9 GMAC per patch); here the widest layer has `width` channels (32 by

@@ -1,8 +1,7 @@
 //! The stage-2 pipeline on an image: warp the ROI to a patch, run the network, extract and sort
 //! the keypoints, decode the ID, map the keypoints back to the image, solve the pose; then once
 //! more from the ROI the first pass's keypoints give (docs/ARCHITECTURE.md §9.6: the paper's result
-//! is stable
-//! after two iterations).
+//! is stable after two iterations).
 
 use super::anchors::{PatchSpec, RawOutputs};
 use super::decode::read_patch;
