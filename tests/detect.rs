@@ -361,7 +361,11 @@ fn crc32(bytes: &[u8]) -> u32 {
     for &b in bytes {
         crc ^= b as u32;
         for _ in 0..8 {
-            crc = if crc & 1 == 1 { (crc >> 1) ^ 0xEDB8_8320 } else { crc >> 1 };
+            crc = if crc & 1 == 1 {
+                (crc >> 1) ^ 0xEDB8_8320
+            } else {
+                crc >> 1
+            };
         }
     }
     !crc
@@ -391,12 +395,23 @@ fn oversized_images_are_refused_before_decoding_in_bounded_time_and_memory() {
         let started = std::time::Instant::now();
         let (run, peak_mb) = tagsmith_measured(
             dir.path(),
-            &["detect", file, "--family", "apriltag-36h11", "--roi", SWARMATHON_ROI],
+            &[
+                "detect",
+                file,
+                "--family",
+                "apriltag-36h11",
+                "--roi",
+                SWARMATHON_ROI,
+            ],
         );
         let seconds = started.elapsed().as_secs_f64();
         assert_eq!(run.code, 2, "{file}: {}", run.stderr);
         assert!(run.stderr.contains(size), "{file}: {}", run.stderr);
-        assert!(run.stderr.contains("64.0 megapixels"), "{file}: {}", run.stderr);
+        assert!(
+            run.stderr.contains("64.0 megapixels"),
+            "{file}: {}",
+            run.stderr
+        );
         assert_eq!(run.stderr.matches(file).count(), 1, "{}", run.stderr);
         assert!(seconds < 5.0, "{file}: {seconds:.1} s");
         if let Some(mb) = peak_mb {
@@ -407,12 +422,22 @@ fn oversized_images_are_refused_before_decoding_in_bounded_time_and_memory() {
     let run = tagsmith(
         dir.path(),
         &[
-            "detect", "claims.png", "--family", "apriltag-36h11", "--roi", SWARMATHON_ROI,
-            "--max-pixels", "2000000000",
+            "detect",
+            "claims.png",
+            "--family",
+            "apriltag-36h11",
+            "--roi",
+            SWARMATHON_ROI,
+            "--max-pixels",
+            "2000000000",
         ],
     );
     assert_eq!(run.code, 2, "{}", run.stderr);
-    assert!(run.stderr.contains("corrupt or truncated"), "{}", run.stderr);
+    assert!(
+        run.stderr.contains("corrupt or truncated"),
+        "{}",
+        run.stderr
+    );
 }
 
 #[test]
@@ -424,7 +449,14 @@ fn a_truncated_or_non_image_file_is_bad_input_named_once() {
     for file in ["cut.jpg", "notes.png"] {
         let run = tagsmith(
             dir.path(),
-            &["detect", file, "--family", "apriltag-36h11", "--roi", SWARMATHON_ROI],
+            &[
+                "detect",
+                file,
+                "--family",
+                "apriltag-36h11",
+                "--roi",
+                SWARMATHON_ROI,
+            ],
         );
         assert_eq!(run.code, 2, "{file}: {}", run.stderr);
         assert_eq!(run.stderr.matches(file).count(), 1, "{}", run.stderr);

@@ -22,7 +22,9 @@ fn sources(path: &Path, out: &mut Vec<PathBuf>) {
 
 fn is_test_file(path: &Path) -> bool {
     let name = path.file_stem().unwrap().to_string_lossy();
-    name == "tests" || name.ends_with("_tests") || path.components().any(|c| c.as_os_str() == "tests")
+    name == "tests"
+        || name.ends_with("_tests")
+        || path.components().any(|c| c.as_os_str() == "tests")
 }
 
 /// The `crate::module` paths a file's non-test code names (comments and test modules skipped).
@@ -60,7 +62,10 @@ fn modules_import_only_the_layers_before_them() {
         } else {
             files.push(src.join(format!("{module}.rs")));
         }
-        assert!(files.iter().all(|f| f.exists()), "module {module} not found");
+        assert!(
+            files.iter().all(|f| f.exists()),
+            "module {module} not found"
+        );
         for file in files.iter().filter(|f| !is_test_file(f)) {
             let text = std::fs::read_to_string(file).unwrap();
             for used in uses(&text) {
@@ -81,18 +86,22 @@ fn modules_import_only_the_layers_before_them() {
 
 #[test]
 fn every_module_of_the_crate_is_in_a_layer() {
-    let lib = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("src/lib.rs"))
-        .unwrap();
+    let lib =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("src/lib.rs")).unwrap();
     for line in lib.lines() {
         if let Some(name) = line.trim().strip_prefix("pub mod ") {
             let name = name.trim_end_matches(';');
-            assert!(LAYERS.contains(&name), "lib.rs declares {name}, which has no layer");
+            assert!(
+                LAYERS.contains(&name),
+                "lib.rs declares {name}, which has no layer"
+            );
         }
     }
 }
 
 #[test]
 fn the_checker_sees_a_downward_import() {
-    let text = "use crate::family::Family;\n// crate::eval in a comment\n#[cfg(test)]\nuse crate::eval;";
+    let text =
+        "use crate::family::Family;\n// crate::eval in a comment\n#[cfg(test)]\nuse crate::eval;";
     assert_eq!(uses(text), ["family"]);
 }

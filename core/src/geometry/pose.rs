@@ -69,4 +69,3 @@ impl Pose {
         (self.translation - other.translation).norm()
     }
 }
-

@@ -4,7 +4,7 @@
 
 use super::{luminance, GrayImage};
 use ::image::{DynamicImage, ImageDecoder, ImageFormat, ImageReader};
-use std::io::{BufRead, BufReader, Cursor, Seek};
+use std::io::{BufRead, BufReader, Cursor, Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 
 /// How large an image Tagsmith agrees to decode.
@@ -83,12 +83,65 @@ pub fn decode(bytes: &[u8], limits: &Limits) -> Result<GrayImage, ImageError> {
     decode_from(Cursor::new(bytes), limits).map_err(|kind| ImageError { path: None, kind })
 }
 
-fn decode_from(source: impl BufRead + Seek, limits: &Limits) -> Result<GrayImage, ImageErrorKind> {
+fn decode_from(
+    mut source: impl BufRead + Seek,
+    limits: &Limits,
+) -> Result<GrayImage, ImageErrorKind> {
+    // The size from the header alone, before any decoder runs: some decoders read every chunk up
+    // to the pixel data first, so a header-only file that claims a huge size would otherwise be
+    // reported as truncated rather than as too large.
+    if let Ok(size) = imagesize::reader_size(&mut source) {
+        check_size(size.width as u64, size.height as u64, limits)?;
+    }
+    source.seek(SeekFrom::Start(0))?;
     let reader = ImageReader::new(source).with_guessed_format()?;
     let format = match reader.format() {
         Some(f) if is_supported(f) => f,
         _ => return Err(ImageErrorKind::UnknownFormat),
     };
+    if format == ImageFormat::Jpeg {
+        // JPEG decoders fill a cut-off file with gray and succeed; a photo that lost its end is
+        // bad input, so it must end in an EOI marker after its scan data.
+        let mut bytes = Vec::new();
+        let cap = limits.max_pixels.saturating_mul(4).saturating_add(16 << 20);
+        reader.into_inner().take(cap).read_to_end(&mut bytes)?;
+        if !jpeg_is_complete(&bytes) {
+            return Err(ImageErrorKind::Corrupt {
+                format: "JPEG".into(),
+                message: "the file ends before its end-of-image marker".into(),
+            });
+        }
+        let reader = ImageReader::with_format(Cursor::new(bytes), format);
+        return decode_with(reader, format, limits);
+    }
+    decode_with(reader, format, limits)
+}
+
+fn check_size(width: u64, height: u64, limits: &Limits) -> Result<(), ImageErrorKind> {
+    if width.saturating_mul(height) > limits.max_pixels {
+        return Err(ImageErrorKind::TooLarge {
+            width: width.min(u32::MAX as u64) as u32,
+            height: height.min(u32::MAX as u64) as u32,
+            limit: limits.max_pixels,
+        });
+    }
+    Ok(())
+}
+
+/// Whether JPEG data has an end-of-image marker after its first start-of-scan. Scan data stuffs
+/// every 0xFF byte, so an unstuffed 0xFF 0xD9 there can only be the real end.
+fn jpeg_is_complete(bytes: &[u8]) -> bool {
+    let Some(scan) = bytes.windows(2).position(|w| w == [0xFF, 0xDA]) else {
+        return false;
+    };
+    bytes[scan..].windows(2).any(|w| w == [0xFF, 0xD9])
+}
+
+fn decode_with<R: BufRead + Seek>(
+    reader: ImageReader<R>,
+    format: ImageFormat,
+    limits: &Limits,
+) -> Result<GrayImage, ImageErrorKind> {
     let name = format!("{format:?}").to_uppercase();
     let corrupt = |e: ::image::ImageError| match e {
         ::image::ImageError::IoError(io) if io.kind() != std::io::ErrorKind::UnexpectedEof => {
@@ -107,13 +160,7 @@ fn decode_from(source: impl BufRead + Seek, limits: &Limits) -> Result<GrayImage
     reader.limits(decoder_limits);
     let mut decoder = reader.into_decoder().map_err(corrupt)?;
     let (width, height) = decoder.dimensions();
-    if width as u64 * height as u64 > limits.max_pixels {
-        return Err(ImageErrorKind::TooLarge {
-            width,
-            height,
-            limit: limits.max_pixels,
-        });
-    }
+    check_size(width as u64, height as u64, limits)?;
     let orientation = decoder.orientation().ok();
     let mut image = DynamicImage::from_decoder(decoder).map_err(corrupt)?;
     if let Some(o) = orientation {
@@ -266,6 +313,40 @@ mod tests {
         assert_eq!(gray.len(), 64 * 64);
         assert!((gray[64 * 10 + 5] as i32 - 20).abs() <= 3);
         assert!((gray[64 * 10 + 60] as i32 - 230).abs() <= 3);
+    }
+
+    #[test]
+    fn a_cut_off_jpeg_is_corrupt_not_gray_filled() {
+        let data: Vec<u8> = (0..64 * 64).map(|i| (i % 251) as u8).collect();
+        let jpeg = encode(ImageFormat::Jpeg, 64, 64, &data, ExtendedColorType::L8);
+        let err = decode(&jpeg[..jpeg.len() - 40], &Limits::default()).unwrap_err();
+        assert!(matches!(err.kind, ImageErrorKind::Corrupt { .. }), "{err}");
+    }
+
+    #[test]
+    fn a_header_alone_is_judged_by_the_size_it_claims() {
+        let png = encode(
+            ImageFormat::Png,
+            300,
+            200,
+            &vec![0; 300 * 200],
+            ExtendedColorType::L8,
+        );
+        // Signature + IHDR only: 33 bytes.
+        let err = decode(&png[..33], &Limits { max_pixels: 1000 }).unwrap_err();
+        assert!(
+            matches!(
+                err.kind,
+                ImageErrorKind::TooLarge {
+                    width: 300,
+                    height: 200,
+                    ..
+                }
+            ),
+            "{err}"
+        );
+        let err = decode(&png[..33], &Limits::default()).unwrap_err();
+        assert!(matches!(err.kind, ImageErrorKind::Corrupt { .. }), "{err}");
     }
 
     #[test]

@@ -9,10 +9,10 @@ pub mod augment;
 mod background;
 pub mod contact;
 
+use crate::family::marker_plane_points;
 use crate::family::Family;
 use crate::geometry::{bounding_box, Camera, Homography, Pose, PoseJson};
 use crate::image::GrayImage;
-use crate::family::marker_plane_points;
 use crate::render::{marker_scene, raster, SceneOptions};
 use augment::{draw, AugmentRanges};
 use nalgebra::{Matrix3, Rotation3, Vector3};
