@@ -1,8 +1,7 @@
 //! `codebook stats`, `codebook generate` and `export-opencv`: the codes of a family.
 
 use super::common::{load_family, progress_bar, rotations_of, write_output};
-use super::error::{bad, failed, Result};
-use anyhow::anyhow;
+use super::error::{Classify, Result};
 use clap::{Args, Subcommand};
 use std::path::PathBuf;
 use tagsmith::codebook::{self, GenerateParams, Order};
@@ -123,7 +122,7 @@ impl GenerateArgs {
             bar.set_position(tried);
             bar.set_message(format!("{kept} codes"));
         })
-        .map_err(|e| bad(anyhow!(e)))?;
+        .bad_input()?;
         bar.finish_and_clear();
         let mut spec = family.spec().clone();
         spec.name = self
@@ -142,7 +141,7 @@ impl GenerateArgs {
         );
         let json = family::to_json_string(&spec);
         // The result must load like any family file before it is written.
-        family::from_json_str(&json).map_err(failed)?;
+        family::from_json_str(&json).failure()?;
         write_output(&self.output, json.as_bytes())?;
         println!(
             "{} codes, minimum distance {} (asked {}), {} candidates in {:.2} s ({}); wrote {}",
@@ -171,7 +170,7 @@ pub struct ExportOpencvArgs {
 impl ExportOpencvArgs {
     pub fn run(self) -> Result<()> {
         let family = load_family(&self.family)?;
-        let yaml = codebook::opencv::dictionary_yaml(&family).map_err(|e| bad(anyhow!(e)))?;
+        let yaml = codebook::opencv::dictionary_yaml(&family).bad_input()?;
         write_output(&self.output, yaml.as_bytes())?;
         println!(
             "wrote {} ({} markers) — load with cv2.aruco.Dictionary.readDictionary(cv2.FileStorage(path, cv2.FILE_STORAGE_READ).root())",

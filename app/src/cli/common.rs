@@ -1,7 +1,7 @@
 //! Helpers every command group shares; command modules use these and never each other.
 
-use super::error::{bad, failed, Result};
-use anyhow::{anyhow, Context};
+use super::error::{bad_input, Classify, Result};
+use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::Path;
 use tagsmith::family::{self, Family};
@@ -9,23 +9,23 @@ use tagsmith::family::{self, Family};
 /// A built-in name, or a path to a family file.
 pub fn load_family(name_or_path: &str) -> Result<Family> {
     if let Some(found) = tagsmith::builtin::get(name_or_path) {
-        return found.map_err(bad);
+        return Ok(found?);
     }
     let path = Path::new(name_or_path);
     if path.exists() || name_or_path.ends_with(".json") {
-        return family::load_file(path).map_err(bad);
+        return Ok(family::load_file(path)?);
     }
     let names: Vec<_> = tagsmith::builtin::names().collect();
-    Err(bad(anyhow!(
+    Err(bad_input!(
         "no built-in family or file named {name_or_path:?}; built-in families: {}",
         names.join(", ")
-    )))
+    ))
 }
 
 pub(crate) fn write_output(path: &Path, bytes: &[u8]) -> Result<()> {
     tagsmith::io::write_atomic(path, bytes)
         .with_context(|| format!("cannot write {}", path.display()))
-        .map_err(failed)
+        .failure()
 }
 
 pub(crate) fn extension(path: &Path) -> String {

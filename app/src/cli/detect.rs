@@ -1,8 +1,8 @@
 //! `detect` and `detect-set`: the learned stage-2 detector on images.
 
 use super::common::{load_family, write_output};
-use super::error::{bad, failed, Result};
-use anyhow::{anyhow, Context};
+use super::error::{bad_input, failure, Classify, Result};
+use anyhow::Context;
 use clap::Args;
 use std::path::{Path, PathBuf};
 use tagsmith::detect::annotate::annotate;
@@ -44,19 +44,17 @@ impl DetectArgs {
     pub fn run(self) -> Result<()> {
         let family = load_family(&self.family)?;
         let roi = parse_roi(&self.roi)?;
-        let image = read_gray_png(&self.image)
-            .map_err(|e| bad(anyhow!("{}: {e}", self.image.display())))?;
+        let image = read_gray_png(&self.image).bad_input()?;
         let (camera, camera_source) = match &self.camera {
             Some(path) => (load_camera(path, (image.width, image.height))?, "given"),
             None => (
-                Camera::from_diagonal_fov(image.width, image.height, 70.0)
-                    .map_err(|e| bad(anyhow!(e)))?,
+                Camera::from_diagonal_fov(image.width, image.height, 70.0)?,
                 "guessed (70° diagonal field of view)",
             ),
         };
         let side_mm = self.side_mm.unwrap_or(family.spec().print.marker_side_mm);
         if side_mm.is_nan() || side_mm <= 0.0 {
-            return Err(bad(anyhow!("--side-mm must be positive")));
+            return Err(bad_input!("--side-mm must be positive"));
         }
         let model = load_model(self.model.as_deref(), &family)?;
         let found = model.detect(
@@ -70,8 +68,8 @@ impl DetectArgs {
                 .iter()
                 .flat_map(|r| r.keypoints.iter().map(|k| (k.x, k.y, k.category)))
                 .collect();
-            let png = annotate(&image, &roi, found.as_ref().map(|r| &r.corners), &keypoints)
-                .map_err(|e| failed(anyhow!(e)))?;
+            let png =
+                annotate(&image, &roi, found.as_ref().map(|r| &r.corners), &keypoints).failure()?;
             write_output(path, &png)?;
         }
         let json = match &found {
@@ -112,11 +110,11 @@ impl DetectArgs {
             serde_json::to_string_pretty(&json).expect("JSON values serialise")
         );
         if found.is_none() {
-            return Err(failed(anyhow!(
+            return Err(failure!(
                 "{}: no {} marker decoded in the ROI",
                 self.image.display(),
                 family.name()
-            )));
+            ));
         }
         Ok(())
     }
@@ -152,10 +150,10 @@ impl DetectSetArgs {
         use rand::{Rng, SeedableRng};
         use tagsmith::eval::set::{self, Group};
         use tagsmith::eval::{Detection, DetectionsFile, ImageDetections, PoseJson};
-        let s = set::load(&self.set).map_err(|e| bad(anyhow!(e)))?;
+        let s = set::load(&self.set).bad_input()?;
         let family = load_family(&s.family)?;
         if !(0.0..0.5).contains(&self.roi_noise) {
-            return Err(bad(anyhow!("--roi-noise must be in [0, 0.5)")));
+            return Err(bad_input!("--roi-noise must be in [0, 0.5)"));
         }
         let model = load_model(self.model.as_deref(), &family)?;
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(self.seed);
@@ -165,7 +163,7 @@ impl DetectSetArgs {
             if self.normal_only && !matches!(img.group, Group::Protocol { normal: true, .. }) {
                 continue;
             }
-            let gray = read_gray_png(&self.set.join(&img.file)).map_err(|e| bad(anyhow!(e)))?;
+            let gray = read_gray_png(&self.set.join(&img.file)).bad_input()?;
             let mut detections = Vec::new();
             let mut elapsed = 0.0;
             for m in &img.truth.markers {
@@ -215,7 +213,7 @@ impl DetectSetArgs {
             ),
             images,
         };
-        let json = serde_json::to_string_pretty(&file).map_err(|e| failed(anyhow!(e)))?;
+        let json = serde_json::to_string_pretty(&file).failure()?;
         write_output(&self.output, json.as_bytes())?;
         times.sort_by(f64::total_cmp);
         let median = times.get(times.len() / 2).copied().unwrap_or(f64::NAN);
@@ -235,11 +233,11 @@ fn parse_roi(text: &str) -> Result<[[f64; 2]; 4]> {
         .split(',')
         .map(|v| v.trim().parse::<f64>())
         .collect::<std::result::Result<_, _>>()
-        .map_err(|e| bad(anyhow!("--roi {text:?}: {e}")))?;
+        .map_err(|e| bad_input!("--roi {text:?}: {e}"))?;
     if values.len() != 8 || values.iter().any(|v| !v.is_finite()) {
-        return Err(bad(anyhow!(
+        return Err(bad_input!(
             "--roi {text:?}: expected 8 finite numbers x1,y1,x2,y2,x3,y3,x4,y4"
-        )));
+        ));
     }
     Ok(std::array::from_fn(|i| [values[2 * i], values[2 * i + 1]]))
 }
@@ -247,42 +245,67 @@ fn parse_roi(text: &str) -> Result<[[f64; 2]; 4]> {
 fn load_camera(path: &Path, size: (u32, u32)) -> Result<Camera> {
     let text = std::fs::read_to_string(path)
         .with_context(|| format!("cannot read {}", path.display()))
-        .map_err(bad)?;
+        .bad_input()?;
     let camera = if matches!(
         path.extension().and_then(|e| e.to_str()),
         Some("yml" | "yaml")
     ) {
         Camera::from_opencv_yaml(&text, Some(size))
-            .map_err(|e| bad(anyhow!("{}: {e}", path.display())))?
+            .map_err(|e| bad_input!("{}: {e}", path.display()))?
     } else {
-        serde_json::from_str::<Camera>(&text)
-            .map_err(|e| bad(anyhow!("{}: {e}", path.display())))?
+        serde_json::from_str::<Camera>(&text).map_err(|e| bad_input!("{}: {e}", path.display()))?
     };
     camera
         .validate()
-        .map_err(|e| bad(anyhow!("{}: {e}", path.display())))?;
+        .map_err(|e| bad_input!("{}: {e}", path.display()))?;
     Ok(camera)
 }
 
 /// The model for `family`: the given file, or the weights shipped for it.
 fn load_model(model: Option<&Path>, family: &Family) -> Result<Stage2> {
     match model {
-        Some(path) => Stage2::load(path, family).map_err(bad),
+        Some(path) => Ok(Stage2::load(path, family)?),
         None => {
             let bytes = tagsmith::detect::shipped_model(family.name()).ok_or_else(|| {
-                bad(anyhow!(
+                bad_input!(
                     "no weights are shipped for family {:?}; train them with `tagsmith train {} \
                      --stage keypoints` and pass --model",
                     family.name(),
                     family.name()
-                ))
+                )
             })?;
-            Stage2::from_bytes(
+            Ok(Stage2::from_bytes(
                 bytes,
                 &format!("shipped weights of {}", family.name()),
                 family,
-            )
-            .map_err(bad)
+            )?)
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_broken_image_is_bad_input_named_once() {
+        let dir = tempfile::tempdir().unwrap();
+        let image = dir.path().join("broken.png");
+        std::fs::write(&image, b"\x89PNG\r\n\x1a\n").unwrap();
+        let args = DetectArgs {
+            image: image.clone(),
+            family: "apriltag-36h11".into(),
+            roi: "0,0,10,0,10,10,0,10".into(),
+            camera: None,
+            model: None,
+            side_mm: None,
+            iterations: 2,
+            annotate: None,
+        };
+        let e = args.run().unwrap_err();
+        assert_eq!(e.exit_code(), 2);
+        let text = format!("{e:#}");
+        let name = image.display().to_string();
+        assert_eq!(text.matches(&name).count(), 1, "{text}");
     }
 }

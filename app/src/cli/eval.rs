@@ -1,8 +1,8 @@
 //! `eval generate`, `eval score` and `eval oracle`: the evaluation harness.
 
 use super::common::{load_family, print_quietly, write_output};
-use super::error::{bad, failed, Result};
-use anyhow::{anyhow, Context};
+use super::error::{bad_input, Classify, Result};
+use anyhow::Context;
 use clap::{Args, Subcommand};
 use std::path::PathBuf;
 use tagsmith::eval::{score, set, Detection, DetectionsFile, ImageDetections, PoseJson};
@@ -53,7 +53,7 @@ impl GenerateSetArgs {
             ..set::SetParams::default()
         };
         let started = std::time::Instant::now();
-        let s = set::generate(&family, &params, &self.output).map_err(|e| bad(anyhow!(e)))?;
+        let s = set::generate(&family, &params, &self.output).bad_input()?;
         println!(
             "wrote {} images of {} ({} mm) to {} in {:.1} s",
             s.images.len(),
@@ -80,15 +80,15 @@ pub struct ScoreArgs {
 impl ScoreArgs {
     pub fn run(self) -> Result<()> {
         let (dir, detections) = (&self.set, &self.detections);
-        let s = set::load(dir).map_err(|e| bad(anyhow!(e)))?;
+        let s = set::load(dir).bad_input()?;
         let text = std::fs::read_to_string(detections)
             .with_context(|| format!("cannot read {}", detections.display()))
-            .map_err(bad)?;
-        let file: DetectionsFile = serde_json::from_str(&text)
-            .map_err(|e| bad(anyhow!("{}: {e}", detections.display())))?;
+            .bad_input()?;
+        let file: DetectionsFile =
+            serde_json::from_str(&text).map_err(|e| bad_input!("{}: {e}", detections.display()))?;
         let family = load_family(&s.family).ok();
         let report = score::score(&s, family.as_ref(), &file)
-            .map_err(|e| bad(anyhow!("{}: {e}", detections.display())))?;
+            .map_err(|e| bad_input!("{}: {e}", detections.display()))?;
         let slug: String = file
             .detector
             .chars()
@@ -99,7 +99,7 @@ impl ScoreArgs {
             .unwrap_or_else(|| dir.join(format!("report-{slug}")));
         std::fs::create_dir_all(&out)
             .with_context(|| format!("cannot create {}", out.display()))
-            .map_err(failed)?;
+            .failure()?;
         write_output(
             &out.join("report.json"),
             serde_json::to_string_pretty(&report)
@@ -126,7 +126,7 @@ pub struct OracleArgs {
 
 impl OracleArgs {
     pub fn run(self) -> Result<()> {
-        let s = set::load(&self.set).map_err(|e| bad(anyhow!(e)))?;
+        let s = set::load(&self.set).bad_input()?;
         let images = s
             .images
             .iter()

@@ -1,8 +1,7 @@
 //! `families`, `validate` and `schema`: what the family files hold.
 
 use super::common::{load_family, print_quietly, rotations_of};
-use super::error::{bad, Result};
-use anyhow::anyhow;
+use super::error::{bad_input, Result};
 use clap::Args;
 use std::path::PathBuf;
 use tagsmith::family;
@@ -50,15 +49,15 @@ pub struct ValidateArgs {
 impl ValidateArgs {
     pub fn run(self) -> Result<()> {
         let file = &self.file;
-        let family = family::load_file(file).map_err(bad)?;
+        let family = family::load_file(file)?;
         let computed = family.codebook().min_distance(&rotations_of(&family));
         if let (Some(declared), Some(computed)) = (family.spec().codebook.min_distance, computed) {
             if declared != computed {
-                return Err(bad(anyhow!(
+                return Err(bad_input!(
                     "{}: codebook.min_distance: declared {declared}, but the codes' minimum distance over \
                      the layout's rotations is {computed}",
                     file.display()
-                )));
+                ));
             }
         }
         for w in family.warnings() {

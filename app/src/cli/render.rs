@@ -1,8 +1,7 @@
 //! `render` and `sheet`: markers to SVG, PNG and printable pages.
 
 use super::common::{extension, load_family, write_output};
-use super::error::{bad, failed, Result};
-use anyhow::anyhow;
+use super::error::{bad_input, Result};
 use clap::Args;
 use std::path::PathBuf;
 use tagsmith::render::sheet::{layout_sheet, parse_ids, PageSize, SheetParams};
@@ -35,7 +34,7 @@ impl RenderArgs {
             side_mm: self.size_mm,
             quiet_zone: self.quiet_zone,
         };
-        let scene = marker_scene(&family, self.id, options).map_err(bad)?;
+        let scene = marker_scene(&family, self.id, options)?;
         let bytes = match extension(&self.output).as_str() {
             "svg" => {
                 if self.px.is_some() {
@@ -44,15 +43,14 @@ impl RenderArgs {
                 svg::marker_svg(&scene).into_bytes()
             }
             "png" => {
-                let pixmap =
-                    raster::rasterize_width(&scene, self.px.unwrap_or(512)).map_err(bad)?;
-                raster::encode_png(&pixmap).map_err(failed)?
+                let pixmap = raster::rasterize_width(&scene, self.px.unwrap_or(512))?;
+                raster::encode_png(&pixmap)?
             }
             other => {
-                return Err(bad(anyhow!(
+                return Err(bad_input!(
                     "output {:?}: use .svg or .png, not {other:?}",
                     self.output
-                )))
+                ))
             }
         };
         for w in family.warnings() {
@@ -108,8 +106,8 @@ pub struct SheetArgs {
 impl SheetArgs {
     pub fn run(self) -> Result<()> {
         let family = load_family(&self.family)?;
-        let ids = parse_ids(&self.ids).map_err(|e| bad(anyhow!("--ids: {e}")))?;
-        let mut page = PageSize::parse(&self.page).map_err(|e| bad(anyhow!("--page: {e}")))?;
+        let ids = parse_ids(&self.ids).map_err(|e| bad_input!("--ids: {e}"))?;
+        let mut page = PageSize::parse(&self.page).map_err(|e| bad_input!("--page: {e}"))?;
         if self.landscape {
             page = page.landscape();
         }
@@ -123,13 +121,13 @@ impl SheetArgs {
         if let Some(s) = self.size_mm {
             params.marker_side_mm = s;
         }
-        let sheet = layout_sheet(&family, &params).map_err(bad)?;
+        let sheet = layout_sheet(&family, &params)?;
         for w in &sheet.warnings {
             eprintln!("warning: {w}");
         }
         let written: Vec<PathBuf> = match extension(&self.output).as_str() {
             "pdf" => {
-                let bytes = pdf::sheet_pdf(&sheet).map_err(failed)?;
+                let bytes = pdf::sheet_pdf(&sheet)?;
                 write_output(&self.output, &bytes)?;
                 vec![self.output.clone()]
             }
@@ -152,10 +150,10 @@ impl SheetArgs {
                 out
             }
             other => {
-                return Err(bad(anyhow!(
+                return Err(bad_input!(
                     "output {:?}: use .pdf or .svg, not {other:?}",
                     self.output
-                )))
+                ))
             }
         };
         let names: Vec<String> = written.iter().map(|p| p.display().to_string()).collect();

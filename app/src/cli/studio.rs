@@ -1,7 +1,7 @@
 //! `studio` (and no command at all): the studio window.
 
 use super::common::load_family;
-use super::error::{CliError, Result};
+use super::error::{failure, Result};
 
 #[derive(clap::Args, Debug, Default)]
 pub struct StudioArgs {
@@ -66,10 +66,10 @@ impl StudioArgs {
             }),
         )
         .map_err(|e| {
-            CliError::Failed(anyhow::anyhow!(
+            failure!(
                 "the studio window could not open ({e}); on a machine without a display use the \
                  command line: tagsmith --help"
-            ))
+            )
         })
     }
 }

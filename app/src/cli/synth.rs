@@ -1,8 +1,8 @@
 //! `synth`: training images with exact ground truth.
 
 use super::common::{load_family, progress_bar, write_output};
-use super::error::{bad, failed, Result};
-use anyhow::{anyhow, Context};
+use super::error::{bad_input, failure, Classify, Result};
+use anyhow::Context;
 use clap::Args;
 use std::path::PathBuf;
 
@@ -55,14 +55,14 @@ impl SynthArgs {
             config.augment = synth::augment::AugmentRanges::none();
         }
         if self.count == 0 || self.count > 1_000_000 {
-            return Err(bad(anyhow!(
+            return Err(bad_input!(
                 "-n {}: between 1 and 1000000 images",
                 self.count
-            )));
+            ));
         }
         std::fs::create_dir_all(&self.output)
             .with_context(|| format!("cannot create {}", self.output.display()))
-            .map_err(failed)?;
+            .failure()?;
         let bar = progress_bar(
             self.count,
             "{bar:30} {pos}/{len} images  [{elapsed_precise}, ETA {eta}]",
@@ -72,10 +72,9 @@ impl SynthArgs {
             .into_par_iter()
             .map(|i| -> Result<_> {
                 let sample = synth::synthesize(&family, &config, synth::image_seed(self.seed, i))
-                    .map_err(|e| bad(anyhow!(e)))?;
+                    .bad_input()?;
                 let stem = format!("{i:06}");
-                let png =
-                    contact::encode_gray_png(&sample.image).map_err(|e| failed(anyhow!(e)))?;
+                let png = contact::encode_gray_png(&sample.image).failure()?;
                 write_output(&self.output.join(format!("{stem}.png")), &png)?;
                 let json =
                     serde_json::to_string_pretty(&sample.truth).expect("ground truth serialises");
@@ -87,10 +86,8 @@ impl SynthArgs {
         bar.finish_and_clear();
         let thumbs: Vec<_> = kept.into_iter().flatten().collect();
         let sheet = contact::contact_sheet(&thumbs, 6, 256)
-            .ok_or_else(|| failed(anyhow!("cannot draw the contact sheet")))?;
-        let png = sheet
-            .encode_png()
-            .map_err(|e| failed(anyhow!(e.to_string())))?;
+            .ok_or_else(|| failure!("cannot draw the contact sheet"))?;
+        let png = sheet.encode_png().failure()?;
         write_output(&self.output.join("contact.png"), &png)?;
         println!(
             "wrote {} images ({}×{}, {} mode, seed {}) with ground truth to {}, and contact.png",

@@ -1,8 +1,7 @@
 //! `train`: the learned stage-2 detector's training.
 
 use super::common::{load_family, progress_bar};
-use super::error::{bad, failed, Result};
-use anyhow::anyhow;
+use super::error::{bad_input, Classify, Result};
 use clap::{Args, ValueEnum};
 use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
@@ -60,10 +59,10 @@ impl TrainArgs {
             || self.validate_every == 0
             || !(self.learning_rate > 0.0 && self.learning_rate.is_finite())
         {
-            return Err(bad(anyhow!(
+            return Err(bad_input!(
                 "--steps, --batch, --checkpoint-every and --validate-every must be at least 1, \
                  --width at least 8 and --learning-rate a positive number"
-            )));
+            ));
         }
         let config = TrainConfig {
             steps: self.steps,
@@ -148,7 +147,7 @@ impl TrainArgs {
             )),
             Event::Checkpointed { .. } => {}
         })
-        .map_err(|e| failed(anyhow!(e)))?;
+        .failure()?;
         bar.finish();
         println!(
             "{} steps in {:.0} s ({:.1} ms/step, {:.0} samples/s, data wait {:.1} %); model: {}",
