@@ -1,0 +1,280 @@
+//! `detect` and `detect-set`: the learned stage-2 detector on images.
+
+use super::common::{load_family, write_output};
+use super::error::{bad_input, failure, Classify, Result};
+use anyhow::Context;
+use clap::Args;
+use std::path::{Path, PathBuf};
+use tagsmith::detect::annotate::annotate;
+use tagsmith::detect::stage2::Stage2;
+use tagsmith::family::Family;
+use tagsmith::geometry::Camera;
+
+#[derive(Args, Debug)]
+pub struct DetectArgs {
+    /// Image: PNG, JPEG, BMP, TIFF, WebP or PNM (colour is converted to gray).
+    pub image: PathBuf,
+    /// Built-in family name or path to a family JSON file.
+    #[arg(long)]
+    pub family: String,
+    /// The marker's ROI: its 4 ROI points in the image, x1,y1,…,x4,y4 (any starting corner, in
+    /// the family's order around the marker: clockwise in the image for square markers).
+    #[arg(long)]
+    pub roi: String,
+    /// Camera intrinsics: JSON ({"width","height","fx","fy","cx","cy","distortion"}) or OpenCV
+    /// YAML [default: guessed from the image size and a 70° diagonal field of view].
+    #[arg(long)]
+    pub camera: Option<PathBuf>,
+    /// Model file [default: the shipped weights of the family].
+    #[arg(long)]
+    pub model: Option<PathBuf>,
+    /// Marker size in mm (ROI side) for the pose [default: the family's print size].
+    #[arg(long)]
+    pub side_mm: Option<f64>,
+    /// Stage-2 passes (the second starts from the first's keypoints).
+    #[arg(long, default_value_t = 2)]
+    pub iterations: usize,
+    /// Write the image with the ROI, outline and keypoints drawn on it (PNG).
+    #[arg(long)]
+    pub annotate: Option<PathBuf>,
+    /// Refuse images larger than this many pixels (width × height) before decoding them.
+    #[arg(long, default_value_t = tagsmith::image::Limits::DEFAULT_MAX_PIXELS)]
+    pub max_pixels: u64,
+}
+
+impl DetectArgs {
+    pub fn run(self) -> Result<()> {
+        let family = load_family(&self.family)?;
+        let roi = parse_roi(&self.roi)?;
+        let limits = tagsmith::image::Limits {
+            max_pixels: self.max_pixels,
+        };
+        let image = tagsmith::image::read(&self.image, &limits)?;
+        let (camera, camera_source) = match &self.camera {
+            Some(path) => (load_camera(path, (image.width, image.height))?, "given"),
+            None => (
+                Camera::from_diagonal_fov(image.width, image.height, 70.0)?,
+                "guessed (70° diagonal field of view)",
+            ),
+        };
+        let side_mm = self.side_mm.unwrap_or(family.spec().print.marker_side_mm);
+        if side_mm.is_nan() || side_mm <= 0.0 {
+            return Err(bad_input!("--side-mm must be positive"));
+        }
+        let model = load_model(self.model.as_deref(), &family)?;
+        let found = model.detect(
+            &image,
+            &roi,
+            self.iterations,
+            Some((&camera, side_mm / 1000.0)),
+        );
+        if let Some(path) = &self.annotate {
+            let keypoints: Vec<_> = found
+                .iter()
+                .flat_map(|r| r.keypoints.iter().map(|k| (k.x, k.y, k.category)))
+                .collect();
+            let png =
+                annotate(&image, &roi, found.as_ref().map(|r| &r.corners), &keypoints).failure()?;
+            write_output(path, &png)?;
+        }
+        let json = match &found {
+            None => serde_json::json!({
+                "family": family.name(),
+                "decoded": false,
+            }),
+            Some(r) => {
+                let pose = r.pose.map(|p| {
+                    let m = p.pose.rotation.matrix();
+                    serde_json::json!({
+                        "rotation": [[m[(0, 0)], m[(0, 1)], m[(0, 2)]],
+                                     [m[(1, 0)], m[(1, 1)], m[(1, 2)]],
+                                     [m[(2, 0)], m[(2, 1)], m[(2, 2)]]],
+                        "translation_m": [p.pose.translation[0], p.pose.translation[1], p.pose.translation[2]],
+                        "reprojection_rms_px": p.rms_px,
+                        "side_mm": side_mm,
+                        "camera": camera_source,
+                    })
+                });
+                serde_json::json!({
+                    "family": family.name(),
+                    "decoded": true,
+                    "id": r.id,
+                    "rotation_deg": r.rotation_deg,
+                    "corrected_errors": r.corrected_errors,
+                    "fixed_mismatches": r.fixed_mismatches,
+                    "iterations": r.iterations,
+                    "corners": r.corners,
+                    "missing_keypoints": r.missing,
+                    "keypoints": r.keypoints,
+                    "pose": pose,
+                })
+            }
+        };
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&json).expect("JSON values serialise")
+        );
+        if found.is_none() {
+            return Err(failure!(
+                "{}: no {} marker decoded in the ROI",
+                self.image.display(),
+                family.name()
+            ));
+        }
+        Ok(())
+    }
+}
+
+#[derive(Args, Debug)]
+pub struct DetectSetArgs {
+    /// Benchmark set folder (from `tagsmith eval generate`).
+    pub set: PathBuf,
+    /// Detections file to write (for `tagsmith eval score`).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Model file [default: the shipped weights of the set's family].
+    #[arg(long)]
+    pub model: Option<PathBuf>,
+    /// Each ground-truth ROI corner moves by up to this fraction of the marker side in x and y
+    /// (uniform), standing in for stage 1's error.
+    #[arg(long, default_value_t = 0.05)]
+    pub roi_noise: f64,
+    #[arg(long, default_value_t = 2)]
+    pub iterations: usize,
+    /// Only the protocol's Normal images (≤ 50 cm, ≤ 60°).
+    #[arg(long)]
+    pub normal_only: bool,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+}
+
+impl DetectSetArgs {
+    /// Stage 2 on every marker of a benchmark set from its ground-truth ROI moved by stage-1-like
+    /// noise; the time per image is stage 2 alone (warps, network, post-processing, PnP, all passes).
+    pub fn run(self) -> Result<()> {
+        use tagsmith::eval::set::{self, Group};
+        use tagsmith::eval::stage2_from_truth::Stage2FromTruth;
+        let s = set::load(&self.set).bad_input()?;
+        let family = load_family(&s.family)?;
+        if !(0.0..0.5).contains(&self.roi_noise) {
+            return Err(bad_input!("--roi-noise must be in [0, 0.5)"));
+        }
+        let model = load_model(self.model.as_deref(), &family)?;
+        let mut detector = Stage2FromTruth::new(
+            model,
+            self.roi_noise,
+            self.iterations,
+            s.camera,
+            s.side_m,
+            self.seed,
+        );
+        let normal_only = self.normal_only;
+        let include = |img: &set::BenchImage| {
+            !normal_only || matches!(img.group, Group::Protocol { normal: true, .. })
+        };
+        let file = set::run_detector(&self.set, &s, &mut detector, &include)?;
+        let mut times: Vec<f64> = file
+            .images
+            .iter()
+            .zip(s.images.iter().filter(|img| include(img)))
+            .filter(|(_, img)| !img.truth.markers.is_empty())
+            .map(|(d, img)| d.time_ms / img.truth.markers.len() as f64)
+            .collect();
+        let json = serde_json::to_string_pretty(&file).failure()?;
+        write_output(&self.output, json.as_bytes())?;
+        times.sort_by(f64::total_cmp);
+        let median = times.get(times.len() / 2).copied().unwrap_or(f64::NAN);
+        println!(
+            "{} images, stage 2 per ROI: median {:.2} ms ({} passes); wrote {}",
+            file.images.len(),
+            median,
+            self.iterations,
+            self.output.display()
+        );
+        Ok(())
+    }
+}
+
+fn parse_roi(text: &str) -> Result<[[f64; 2]; 4]> {
+    let values: Vec<f64> = text
+        .split(',')
+        .map(|v| v.trim().parse::<f64>())
+        .collect::<std::result::Result<_, _>>()
+        .map_err(|e| bad_input!("--roi {text:?}: {e}"))?;
+    if values.len() != 8 || values.iter().any(|v| !v.is_finite()) {
+        return Err(bad_input!(
+            "--roi {text:?}: expected 8 finite numbers x1,y1,x2,y2,x3,y3,x4,y4"
+        ));
+    }
+    Ok(std::array::from_fn(|i| [values[2 * i], values[2 * i + 1]]))
+}
+
+fn load_camera(path: &Path, size: (u32, u32)) -> Result<Camera> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("cannot read {}", path.display()))
+        .bad_input()?;
+    let camera = if matches!(
+        path.extension().and_then(|e| e.to_str()),
+        Some("yml" | "yaml")
+    ) {
+        Camera::from_opencv_yaml(&text, Some(size))
+            .map_err(|e| bad_input!("{}: {e}", path.display()))?
+    } else {
+        serde_json::from_str::<Camera>(&text).map_err(|e| bad_input!("{}: {e}", path.display()))?
+    };
+    camera
+        .validate()
+        .map_err(|e| bad_input!("{}: {e}", path.display()))?;
+    Ok(camera)
+}
+
+/// The model for `family`: the given file, or the weights shipped for it.
+fn load_model(model: Option<&Path>, family: &Family) -> Result<Stage2> {
+    match model {
+        Some(path) => Ok(Stage2::load(path, family)?),
+        None => {
+            let bytes =
+                tagsmith::detect::stage2::shipped_model(family.name()).ok_or_else(|| {
+                    bad_input!(
+                    "no weights are shipped for family {:?}; train them with `tagsmith train {} \
+                     --stage keypoints` and pass --model",
+                    family.name(),
+                    family.name()
+                )
+                })?;
+            Ok(Stage2::from_bytes(
+                bytes,
+                &format!("shipped weights of {}", family.name()),
+                family,
+            )?)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_broken_image_is_bad_input_named_once() {
+        let dir = tempfile::tempdir().unwrap();
+        let image = dir.path().join("broken.png");
+        std::fs::write(&image, b"\x89PNG\r\n\x1a\n").unwrap();
+        let args = DetectArgs {
+            image: image.clone(),
+            family: "apriltag-36h11".into(),
+            roi: "0,0,10,0,10,10,0,10".into(),
+            camera: None,
+            model: None,
+            side_mm: None,
+            iterations: 2,
+            annotate: None,
+            max_pixels: tagsmith::image::Limits::DEFAULT_MAX_PIXELS,
+        };
+        let e = args.run().unwrap_err();
+        assert_eq!(e.exit_code(), 2);
+        let text = format!("{e:#}");
+        let name = image.display().to_string();
+        assert_eq!(text.matches(&name).count(), 1, "{text}");
+    }
+}

@@ -1,0 +1,141 @@
+//! `eval generate`, `eval score` and `eval oracle`: the evaluation harness.
+
+use super::common::{load_family, print_quietly, write_output};
+use super::error::{bad_input, Classify, Result};
+use anyhow::Context;
+use clap::{Args, Subcommand};
+use std::path::PathBuf;
+use tagsmith::detect::DetectionsFile;
+use tagsmith::eval::{score, set};
+
+#[derive(Subcommand, Debug)]
+pub enum EvalCommand {
+    /// Render a benchmark set (the paper's protocol, jitter, noise and motion-blur sweeps) to DIR.
+    Generate(GenerateSetArgs),
+    /// Score a detections JSON file against a benchmark set: report.json, report.md and plots.
+    Score(ScoreArgs),
+    /// Write the ground truth as a detections file: the format's reference and a perfect score.
+    Oracle(OracleArgs),
+}
+
+impl EvalCommand {
+    pub fn run(self) -> Result<()> {
+        match self {
+            EvalCommand::Generate(a) => a.run(),
+            EvalCommand::Score(a) => a.run(),
+            EvalCommand::Oracle(a) => a.run(),
+        }
+    }
+}
+
+#[derive(Args, Debug)]
+pub struct GenerateSetArgs {
+    /// Built-in family name or path to a family JSON file.
+    pub family: String,
+    /// Marker side in mm (corner to corner).
+    #[arg(long, default_value_t = 50.0)]
+    pub side_mm: f64,
+    /// Images per (distance, angle) cell of the protocol (10 × 10 cells).
+    #[arg(long, default_value_t = 1)]
+    pub per_cell: u32,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
+impl GenerateSetArgs {
+    pub fn run(self) -> Result<()> {
+        let family = load_family(&self.family)?;
+        let params = set::SetParams {
+            side_m: self.side_mm / 1000.0,
+            per_cell: self.per_cell,
+            seed: self.seed,
+            ..set::SetParams::default()
+        };
+        let started = std::time::Instant::now();
+        let s = set::generate(&family, &params, &self.output).bad_input()?;
+        println!(
+            "wrote {} images of {} ({} mm) to {} in {:.1} s",
+            s.images.len(),
+            family.name(),
+            self.side_mm,
+            self.output.display(),
+            started.elapsed().as_secs_f64()
+        );
+        Ok(())
+    }
+}
+
+#[derive(Args, Debug)]
+pub struct ScoreArgs {
+    /// Benchmark set folder (with set.json).
+    pub set: PathBuf,
+    /// Detections JSON (format documented in core/src/eval/mod.rs and bench/README.md).
+    pub detections: PathBuf,
+    /// Report folder [default: SET/report-DETECTOR].
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+}
+
+impl ScoreArgs {
+    pub fn run(self) -> Result<()> {
+        let (dir, detections) = (&self.set, &self.detections);
+        let s = set::load(dir).bad_input()?;
+        let text = std::fs::read_to_string(detections)
+            .with_context(|| format!("cannot read {}", detections.display()))
+            .bad_input()?;
+        let file: DetectionsFile =
+            serde_json::from_str(&text).map_err(|e| bad_input!("{}: {e}", detections.display()))?;
+        let family = load_family(&s.family).ok();
+        let report = score::score(&s, family.as_ref(), &file)
+            .map_err(|e| bad_input!("{}: {e}", detections.display()))?;
+        let slug: String = file
+            .detector
+            .chars()
+            .map(|c| if c.is_ascii_alphanumeric() { c } else { '-' })
+            .collect();
+        let out = self
+            .output
+            .unwrap_or_else(|| dir.join(format!("report-{slug}")));
+        std::fs::create_dir_all(&out)
+            .with_context(|| format!("cannot create {}", out.display()))
+            .failure()?;
+        write_output(
+            &out.join("report.json"),
+            serde_json::to_string_pretty(&report)
+                .expect("serialises")
+                .as_bytes(),
+        )?;
+        let md = report.markdown();
+        write_output(&out.join("report.md"), md.as_bytes())?;
+        for (name, svg) in report.plots() {
+            write_output(&out.join(name), svg.as_bytes())?;
+        }
+        print_quietly(&md);
+        println!("\nwrote {}", out.display());
+        Ok(())
+    }
+}
+
+#[derive(Args, Debug)]
+pub struct OracleArgs {
+    pub set: PathBuf,
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
+impl OracleArgs {
+    pub fn run(self) -> Result<()> {
+        let s = set::load(&self.set).bad_input()?;
+        let file = s.oracle();
+        write_output(
+            &self.output,
+            serde_json::to_string_pretty(&file)
+                .expect("serialises")
+                .as_bytes(),
+        )?;
+        println!("wrote {}", self.output.display());
+        Ok(())
+    }
+}

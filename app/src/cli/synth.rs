@@ -1,0 +1,103 @@
+//! `synth`: training images with exact ground truth.
+
+use super::common::{load_family, progress_bar, write_output};
+use super::error::{bad_input, failure, Classify, Result};
+use anyhow::Context;
+use clap::Args;
+use std::path::PathBuf;
+
+#[derive(Args, Debug)]
+pub struct SynthArgs {
+    /// Built-in family name or path to a family JSON file.
+    pub family: String,
+    /// Number of images.
+    #[arg(short = 'n', long, default_value_t = 32)]
+    pub count: u64,
+    /// quad: stage-1 scenes (320×320); camera: 1280×960 at 98° with the pose; patch: stage-2
+    /// patches (128×128).
+    #[arg(long, value_enum, default_value_t = SynthMode::Quad)]
+    pub mode: SynthMode,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    #[arg(long)]
+    pub width: Option<u32>,
+    #[arg(long)]
+    pub height: Option<u32>,
+    /// Exact renderings: no noise, blur, lighting or distortion.
+    #[arg(long)]
+    pub no_augment: bool,
+    /// Output folder (created if missing).
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum SynthMode {
+    Quad,
+    Camera,
+    Patch,
+}
+
+impl SynthArgs {
+    pub fn run(self) -> Result<()> {
+        use rayon::prelude::*;
+        use tagsmith::synth::{self, contact, Mode, SynthConfig};
+        let family = load_family(&self.family)?;
+        let mode = match self.mode {
+            SynthMode::Quad => Mode::Quad,
+            SynthMode::Camera => Mode::Camera,
+            SynthMode::Patch => Mode::Patch,
+        };
+        let mut config = SynthConfig::new(mode);
+        config.width = self.width.unwrap_or(config.width);
+        config.height = self.height.unwrap_or(config.height);
+        if self.no_augment {
+            config.augment = synth::augment::AugmentRanges::none();
+        }
+        if self.count == 0 || self.count > 1_000_000 {
+            return Err(bad_input!(
+                "-n {}: between 1 and 1000000 images",
+                self.count
+            ));
+        }
+        std::fs::create_dir_all(&self.output)
+            .with_context(|| format!("cannot create {}", self.output.display()))
+            .failure()?;
+        let bar = progress_bar(
+            self.count,
+            "{bar:30} {pos}/{len} images  [{elapsed_precise}, ETA {eta}]",
+        );
+        // Every image has its own seed, so the set is the same whatever the number of threads.
+        let kept: Vec<_> = (0..self.count)
+            .into_par_iter()
+            .map(|i| -> Result<_> {
+                let sample = synth::synthesize(&family, &config, synth::image_seed(self.seed, i))
+                    .bad_input()?;
+                let stem = format!("{i:06}");
+                let png = tagsmith::image::encode_png(&sample.image).failure()?;
+                write_output(&self.output.join(format!("{stem}.png")), &png)?;
+                let json =
+                    serde_json::to_string_pretty(&sample.truth).expect("ground truth serialises");
+                write_output(&self.output.join(format!("{stem}.json")), json.as_bytes())?;
+                bar.inc(1);
+                Ok((i < 36).then_some((sample.image, sample.truth)))
+            })
+            .collect::<Result<Vec<_>>>()?;
+        bar.finish_and_clear();
+        let thumbs: Vec<_> = kept.into_iter().flatten().collect();
+        let sheet = contact::contact_sheet(&thumbs, 6, 256)
+            .ok_or_else(|| failure!("cannot draw the contact sheet"))?;
+        let png = sheet.encode_png().failure()?;
+        write_output(&self.output.join("contact.png"), &png)?;
+        println!(
+            "wrote {} images ({}×{}, {} mode, seed {}) with ground truth to {}, and contact.png",
+            self.count,
+            config.width,
+            config.height,
+            format!("{mode:?}").to_lowercase(),
+            self.seed,
+            self.output.display()
+        );
+        Ok(())
+    }
+}

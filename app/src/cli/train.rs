@@ -1,0 +1,163 @@
+//! `train`: the learned stage-2 detector's training.
+
+use super::common::{load_family, progress_bar};
+use super::error::{bad_input, Classify, Result};
+use clap::{Args, ValueEnum};
+use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
+use tagsmith::train::{self, Event, TrainConfig};
+
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stage {
+    /// Stage 2: the keypoint network on rectified patches.
+    Keypoints,
+}
+
+#[derive(Args, Debug)]
+pub struct TrainArgs {
+    /// Built-in family name or path to a family JSON file.
+    pub family: String,
+    #[arg(long, value_enum)]
+    pub stage: Stage,
+    #[arg(long, default_value_t = TrainConfig::default().steps)]
+    pub steps: u64,
+    #[arg(long, default_value_t = TrainConfig::default().batch)]
+    pub batch: usize,
+    /// Output folder (checkpoint, model, report) [default: runs/FAMILY-keypoints].
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Continue from the output folder's checkpoint.
+    #[arg(long)]
+    pub resume: bool,
+    /// Channels of the network's widest layers.
+    #[arg(long, default_value_t = TrainConfig::default().width)]
+    pub width: usize,
+    /// Adam's learning rate (it falls to a tenth over the last quarter of the steps).
+    #[arg(long, default_value_t = TrainConfig::default().learning_rate)]
+    pub learning_rate: f64,
+    #[arg(long, default_value_t = TrainConfig::default().seed)]
+    pub seed: u64,
+    #[arg(long, default_value_t = TrainConfig::default().checkpoint_every)]
+    pub checkpoint_every: u64,
+    #[arg(long, default_value_t = TrainConfig::default().validate_every)]
+    pub validate_every: u64,
+    #[arg(long, default_value_t = TrainConfig::default().validation_patches)]
+    pub validation_patches: usize,
+    /// Threads synthesising patches ahead of the optimiser.
+    #[arg(long, default_value_t = TrainConfig::default().workers)]
+    pub workers: usize,
+}
+
+impl TrainArgs {
+    pub fn run(self) -> Result<()> {
+        let Stage::Keypoints = self.stage;
+        let family = load_family(&self.family)?;
+        if self.steps == 0
+            || self.batch == 0
+            || self.width < 8
+            || self.checkpoint_every == 0
+            || self.validate_every == 0
+            || !(self.learning_rate > 0.0 && self.learning_rate.is_finite())
+        {
+            return Err(bad_input!(
+                "--steps, --batch, --checkpoint-every and --validate-every must be at least 1, \
+                 --width at least 8 and --learning-rate a positive number"
+            ));
+        }
+        let config = TrainConfig {
+            steps: self.steps,
+            batch: self.batch,
+            width: self.width,
+            learning_rate: self.learning_rate,
+            seed: self.seed,
+            checkpoint_every: self.checkpoint_every,
+            validate_every: self.validate_every,
+            validation_patches: self.validation_patches,
+            workers: self.workers,
+            ..TrainConfig::default()
+        };
+        let out = self
+            .out
+            .unwrap_or_else(|| PathBuf::from(format!("runs/{}-keypoints", family.name())));
+        let bar = progress_bar(
+            config.steps,
+            "{bar:30} {pos}/{len} {msg} [{elapsed_precise}, ETA {eta_precise}]",
+        );
+        // Without a terminal (a log file) the bar is hidden: print plain lines instead.
+        let plain = bar.is_hidden();
+        let say = |line: String| {
+            if plain {
+                eprintln!("{line}");
+            } else {
+                bar.println(line);
+            }
+        };
+        let stop = AtomicBool::new(false);
+        let report = train::train(&family, &config, &out, self.resume, &stop, &mut |event| match event {
+            Event::Started {
+                family,
+                first_step,
+                params,
+                macs,
+                ..
+            } => {
+                bar.set_position(first_step);
+                bar.reset_eta();
+                say(format!(
+                    "training {family}: {params} parameters, {:.1} MMAC per patch{}",
+                    macs as f64 / 1e6,
+                    if first_step > 0 {
+                        format!(", resumed at step {first_step}")
+                    } else {
+                        String::new()
+                    }
+                ));
+            }
+            Event::Step {
+                step,
+                loss,
+                samples_per_s,
+                data_wait,
+            } => {
+                bar.set_position(step);
+                let message = format!(
+                    "loss {:.3} (conf {:.3} off {:.3} mask {:.3} tpl {:.3}) {:.0} samples/s, data wait {:.0} %",
+                    loss.total,
+                    loss.confidence,
+                    loss.offset,
+                    loss.mask,
+                    loss.template,
+                    samples_per_s,
+                    100.0 * data_wait
+                );
+                if plain && step.is_multiple_of(100) {
+                    say(format!("step {step}/{}: {message}", config.steps));
+                }
+                bar.set_message(message);
+            }
+            Event::Validated { step, metrics } => say(format!(
+                "step {step}: keypoint recall {:.2} %, symbol accuracy {:.2} %, ID accuracy {:.1} % \
+                 (wrong {:.1} %), keypoint error RMS {:.2} px (median {:.2})",
+                100.0 * metrics.keypoint_recall,
+                100.0 * metrics.symbol_accuracy,
+                100.0 * metrics.id_accuracy,
+                100.0 * metrics.wrong_id_rate,
+                metrics.keypoint_rms_px,
+                metrics.keypoint_median_px
+            )),
+            Event::Checkpointed { .. } => {}
+        })
+        .failure()?;
+        bar.finish();
+        println!(
+            "{} steps in {:.0} s ({:.1} ms/step, {:.0} samples/s, data wait {:.1} %); model: {}",
+            report.steps,
+            report.wall_s,
+            report.mean_step_ms,
+            report.samples_per_s,
+            100.0 * report.data_wait_fraction,
+            report.model_file
+        );
+        Ok(())
+    }
+}
