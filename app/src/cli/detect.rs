@@ -7,6 +7,7 @@ use clap::Args;
 use std::path::{Path, PathBuf};
 use tagsmith::detect::annotate::annotate;
 use tagsmith::detect::stage2::Stage2;
+use tagsmith::detect::MarkerReport;
 use tagsmith::family::Family;
 use tagsmith::geometry::Camera;
 
@@ -77,42 +78,11 @@ impl DetectArgs {
                 annotate(&image, &roi, found.as_ref().map(|r| &r.corners), &keypoints).failure()?;
             write_output(path, &png)?;
         }
-        let json = match &found {
-            None => serde_json::json!({
-                "family": family.name(),
-                "decoded": false,
-            }),
-            Some(r) => {
-                let pose = r.pose.map(|p| {
-                    let m = p.pose.rotation.matrix();
-                    serde_json::json!({
-                        "rotation": [[m[(0, 0)], m[(0, 1)], m[(0, 2)]],
-                                     [m[(1, 0)], m[(1, 1)], m[(1, 2)]],
-                                     [m[(2, 0)], m[(2, 1)], m[(2, 2)]]],
-                        "translation_m": [p.pose.translation[0], p.pose.translation[1], p.pose.translation[2]],
-                        "reprojection_rms_px": p.rms_px,
-                        "side_mm": side_mm,
-                        "camera": camera_source,
-                    })
-                });
-                serde_json::json!({
-                    "family": family.name(),
-                    "decoded": true,
-                    "id": r.id,
-                    "rotation_deg": r.rotation_deg,
-                    "corrected_errors": r.corrected_errors,
-                    "fixed_mismatches": r.fixed_mismatches,
-                    "iterations": r.iterations,
-                    "corners": r.corners,
-                    "missing_keypoints": r.missing,
-                    "keypoints": r.keypoints,
-                    "pose": pose,
-                })
-            }
-        };
+        let report =
+            MarkerReport::from_stage2(family.name(), found.as_ref(), side_mm, camera_source);
         println!(
             "{}",
-            serde_json::to_string_pretty(&json).expect("JSON values serialise")
+            serde_json::to_string_pretty(&report).expect("reports serialise")
         );
         if found.is_none() {
             return Err(failure!(

@@ -93,7 +93,7 @@ impl TrainArgs {
             }
         };
         let stop = AtomicBool::new(false);
-        let report = train::train(&family, &config, &out, self.resume, &stop, &mut |event| match event {
+        let report = train::train_keypoints(&family, &config, &out, self.resume, &stop, &mut |event| match event {
             Event::Started {
                 family,
                 first_step,

@@ -37,3 +37,17 @@ pub trait Detector {
     /// place of stage 1) takes its input from it.
     fn observe_truth(&mut self, _truth: &crate::synth::Truth) {}
 }
+
+/// One keypoint of a detected marker, in the family's canonical order.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DetectedKeypoint {
+    /// Index in the family's keypoint list.
+    pub index: usize,
+    /// Image pixels.
+    pub x: f64,
+    pub y: f64,
+    pub category: usize,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub symbol: Option<u8>,
+    pub confidence: f64,
+}

@@ -4,6 +4,8 @@
 
 pub mod annotate;
 mod detection;
+mod report;
 pub mod stage2;
 
-pub use detection::{Detection, DetectionsFile, Detector, ImageDetections};
+pub use detection::{DetectedKeypoint, Detection, DetectionsFile, Detector, ImageDetections};
+pub use report::{MarkerReport, PoseReport};

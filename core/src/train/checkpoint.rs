@@ -1,33 +1,30 @@
 //! One checkpoint file, rewritten atomically (temporary file, fsync, rename): a magic line, the
-//! run's state as JSON, the model in the model-file format (so it carries the family check), and
-//! the optimiser state (Adam moments) in burnpack. A kill at any moment leaves the previous
-//! checkpoint or the new one, never a mix.
+//! run's state as JSON, the model in its stage's model-file format (so it carries the family
+//! check), and the optimiser state (Adam moments) in burnpack. A kill at any moment leaves the
+//! previous checkpoint or the new one, never a mix.
 
-use super::validate::Metrics;
 use super::TrainConfig;
-use crate::detect::stage2::model_file;
-use crate::detect::stage2::net::{NetConfig, Stage2Net};
-use crate::family::Family;
 use burn::optim::ModuleOptimizer;
-use burn::tensor::{Bytes, Device};
+use burn::tensor::Bytes;
+use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
 const MAGIC: &[u8] = b"TAGSMITH-CHECKPOINT\n";
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct Meta {
+pub struct Meta<M> {
     /// Steps done; the data stream resumes at sample `step × batch`.
     pub step: u64,
-    pub validation: Vec<(u64, Metrics)>,
+    pub validation: Vec<(u64, M)>,
     pub wall_s: f64,
     pub config: TrainConfig,
 }
 
-pub struct State {
-    pub net: Stage2Net,
+pub struct State<M> {
+    pub model: Vec<u8>,
     pub optimiser: Bytes,
-    pub meta: Meta,
+    pub meta: Meta<M>,
 }
 
 fn section(out: &mut Vec<u8>, bytes: &[u8]) {
@@ -35,30 +32,22 @@ fn section(out: &mut Vec<u8>, bytes: &[u8]) {
     out.extend_from_slice(bytes);
 }
 
-pub fn save(
+pub fn save<M: Serialize>(
     path: &Path,
-    family: &Family,
-    net: Stage2Net,
-    config: &NetConfig,
+    model: &[u8],
     optim: &ModuleOptimizer,
-    meta: &Meta,
+    meta: &Meta<M>,
 ) -> Result<(), String> {
-    let model = model_file::to_bytes(net, config, family, meta.step)?;
     let optimiser = optim.into_bytes().map_err(|e| e.to_string())?;
     let json = serde_json::to_vec(meta).map_err(|e| e.to_string())?;
     let mut out = MAGIC.to_vec();
     section(&mut out, &json);
-    section(&mut out, &model);
+    section(&mut out, model);
     section(&mut out, &optimiser);
     crate::io::write_atomic(path, &out).map_err(|e| format!("{}: {e}", path.display()))
 }
 
-pub fn load(
-    path: &Path,
-    family: &Family,
-    config: &NetConfig,
-    device: &Device,
-) -> Result<State, String> {
+pub fn load<M: DeserializeOwned>(path: &Path) -> Result<State<M>, String> {
     let name = path.display().to_string();
     let bytes = std::fs::read(path).map_err(|e| format!("{name}: {e}"))?;
     let corrupt = || format!("{name}: not a Tagsmith checkpoint, or a damaged one");
@@ -72,18 +61,11 @@ pub fn load(
         rest = &rest[8 + len..];
         Ok(body)
     };
-    let meta: Meta = serde_json::from_slice(next()?).map_err(|e| format!("{name}: {e}"))?;
-    let (net, header) =
-        model_file::from_bytes(next()?, &name, family, device).map_err(|e| e.to_string())?;
-    if header.net != *config {
-        return Err(format!(
-            "{name}: the checkpoint's network ({:?}) differs from the requested one ({:?})",
-            header.net, config
-        ));
-    }
+    let meta: Meta<M> = serde_json::from_slice(next()?).map_err(|e| format!("{name}: {e}"))?;
+    let model = next()?.to_vec();
     let optimiser = Bytes::from_bytes_vec(next()?.to_vec());
     Ok(State {
-        net,
+        model,
         optimiser,
         meta,
     })

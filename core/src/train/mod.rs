@@ -1,5 +1,7 @@
-//! Training the stage-2 keypoint network (docs/ARCHITECTURE.md §10): burn with autodiff on the
-//! `flex` CPU backend, Adam at lr 1e-3, patches synthesised by worker threads ahead of the
+//! Training the detector's networks. One loop ([`train`]) for every stage, over a small per-stage
+//! part ([`stage::TrainStage`]: network, samples, loss, validation, model file); stage 2 is
+//! [`stage2::KeypointStage`] (docs/ARCHITECTURE.md §10): burn with autodiff on the `flex` CPU
+//! backend, Adam (lr 1e-3 for stage 2), samples synthesised by worker threads ahead of the
 //! optimiser, periodic validation on a fixed seeded set, atomic checkpoints, resume, and a JSON
 //! report.
 //!
@@ -10,25 +12,22 @@
 //! final weights, the format of [`crate::detect::stage2::model_file`]) and `report.json`.
 
 mod checkpoint;
-pub mod data;
-pub mod loss;
-pub mod validate;
+pub mod loader;
+pub mod stage;
+pub mod stage2;
 
-use crate::detect::stage2::anchors::PatchSpec;
-use crate::detect::stage2::model_file;
-use crate::detect::stage2::net::{macs, NetConfig, Stage2Net};
-use crate::detect::stage2::pipeline::raw_outputs;
 use crate::family::Family;
 use burn::module::Module;
-use burn::optim::{AdamConfig, GradientsParams};
+use burn::optim::{AdamConfig, GradientsParams, ModuleOptimizer};
 use burn::tensor::Device;
-use data::Loader;
-use loss::{losses, Batch, LossTerms};
+use loader::Loader;
 use serde::{Deserialize, Serialize};
+use stage::TrainStage;
+use stage2::KeypointStage;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::Instant;
-use validate::Metrics;
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct TrainConfig {
@@ -75,8 +74,10 @@ impl TrainConfig {
     }
 }
 
+/// Progress of a run, for a progress bar or a live plot. `M` and `L` are the stage's metrics and
+/// loss terms ([`TrainStage::Metrics`], [`TrainStage::Terms`]).
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub enum Event {
+pub enum Event<M, L> {
     Started {
         family: String,
         first_step: u64,
@@ -86,27 +87,28 @@ pub enum Event {
     },
     Step {
         step: u64,
-        loss: LossTerms,
+        loss: L,
         samples_per_s: f64,
         /// Fraction of the run's time the optimiser waited for data so far.
         data_wait: f64,
     },
     Validated {
         step: u64,
-        metrics: Metrics,
+        metrics: M,
     },
     Checkpointed {
         step: u64,
     },
 }
 
+/// The run's `report.json`. `I`, `M`, `L`: the stage's network info, metrics and loss terms.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Report {
+pub struct Report<I, M, L> {
     pub family: String,
     pub family_hash: String,
     pub config: TrainConfig,
-    pub net: NetConfig,
-    pub patch: usize,
+    #[serde(flatten)]
+    pub info: I,
     pub params: usize,
     pub macs_per_patch: u64,
     pub steps: u64,
@@ -117,8 +119,8 @@ pub struct Report {
     pub samples_per_s: f64,
     pub data_wait_fraction: f64,
     pub resumed_from: Option<u64>,
-    pub final_loss: LossTerms,
-    pub validation: Vec<(u64, Metrics)>,
+    pub final_loss: L,
+    pub validation: Vec<(u64, M)>,
     pub model_file: String,
 }
 
@@ -137,159 +139,212 @@ impl OutDir {
     }
 }
 
-/// Trains stage 2 for `family` into `out`; with `resume`, continues from the folder's checkpoint.
-/// `stop` ends the run early at the next step (a checkpoint is written first).
-pub fn train(
+/// The report of a stage's run.
+pub type StageReport<S> =
+    Report<<S as TrainStage>::Info, <S as TrainStage>::Metrics, <S as TrainStage>::Terms>;
+/// The events of a stage's run.
+pub type StageEvent<S> = Event<<S as TrainStage>::Metrics, <S as TrainStage>::Terms>;
+
+/// Trains stage 2 (the keypoint network) for `family`: [`train`] with [`KeypointStage`].
+pub fn train_keypoints(
     family: &Family,
     config: &TrainConfig,
     out: &Path,
     resume: bool,
     stop: &AtomicBool,
-    on_event: &mut dyn FnMut(Event),
-) -> Result<Report, String> {
+    on_event: &mut dyn FnMut(StageEvent<KeypointStage>),
+) -> Result<StageReport<KeypointStage>, String> {
+    let stage = Arc::new(KeypointStage::new(family, config.width));
+    train(stage, config, out, resume, stop, on_event)
+}
+
+/// Trains `stage` into `out`; with `resume`, continues from the folder's checkpoint. `stop` ends
+/// the run early at the next step (a checkpoint is written first).
+pub fn train<S: TrainStage>(
+    stage: Arc<S>,
+    config: &TrainConfig,
+    out: &Path,
+    resume: bool,
+    stop: &AtomicBool,
+    on_event: &mut dyn FnMut(StageEvent<S>),
+) -> Result<StageReport<S>, String> {
     let dir = OutDir(out.to_path_buf());
     std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
-    let spec = PatchSpec::for_family(family);
-    let net_config = NetConfig {
-        classes: family.categories().len() + 1,
-        width: config.width,
-        patch: spec.size as usize,
-    };
-    let device = Device::flex().autodiff();
-    // Seeded initial weights: a run is a function of its config (resumed runs load theirs).
-    device.seed(config.seed);
-    let mut net: Stage2Net = net_config.init(&device);
-    let mut optim = AdamConfig::new().init();
-    let mut step = 0u64;
-    let mut history: Vec<(u64, Metrics)> = Vec::new();
-    let mut earlier_wall = 0.0;
-    let mut resumed_from = None;
-    if resume && dir.checkpoint().exists() {
-        let state = checkpoint::load(&dir.checkpoint(), family, &net_config, &device)?;
-        net = state.net;
-        optim = optim
-            .from_bytes(state.optimiser)
-            .map_err(|e| format!("{}: optimiser state: {e}", dir.checkpoint().display()))?;
-        step = state.meta.step;
-        history = state.meta.validation;
-        earlier_wall = state.meta.wall_s;
-        resumed_from = Some(step);
-    }
-    let params = net.num_params();
+    let mut run = Run::start(stage.clone(), config, &dir, resume)?;
     on_event(Event::Started {
-        family: family.name().into(),
-        first_step: step,
+        family: stage.family().name().into(),
+        first_step: run.step,
         steps: config.steps,
-        params,
-        macs: macs(&net_config),
+        params: run.params,
+        macs: stage.macs(),
     });
-
-    let validation = validate::validation_set(family, &spec, config.validation_patches)?;
+    let validation = stage.validation_set(config.validation_patches)?;
+    let make: loader::MakeSample<S::Sample> = {
+        let stage = stage.clone();
+        Arc::new(move |seed| stage.sample(seed))
+    };
     let mut loader = Loader::start(
-        family,
-        spec,
+        make,
         config.seed,
-        step * config.batch as u64,
+        run.step * config.batch as u64,
         config.workers,
         4 * config.batch,
     );
-    let started = Instant::now();
-    let first_step = step;
-    let mut last = LossTerms::default();
-    while step < config.steps && !stop.load(Ordering::Relaxed) {
+    run.started = Instant::now();
+    while run.step < config.steps && !stop.load(Ordering::Relaxed) {
         let samples = loader.batch(config.batch)?;
-        let batch = Batch::new(&samples, net_config.classes, spec.size as usize, &device);
-        let (loss, terms) = losses(net.forward(batch.input.clone()), &batch);
-        let grads = GradientsParams::from_grads(loss.backward(), &net);
-        net = optim.step(config.learning_rate_at(step), net, grads);
-        step += 1;
-        last = terms;
-        let elapsed = started.elapsed().as_secs_f64();
-        on_event(Event::Step {
-            step,
-            loss: terms,
-            samples_per_s: ((step - first_step) as usize * config.batch) as f64 / elapsed.max(1e-9),
-            data_wait: loader.waited.as_secs_f64() / elapsed.max(1e-9),
-        });
-        if step.is_multiple_of(config.validate_every) || step == config.steps {
-            let metrics = run_validation(&net, family, &spec, &validation, net_config.classes);
-            history.push((step, metrics));
-            on_event(Event::Validated { step, metrics });
+        run.optimise(&samples);
+        on_event(run.progress(&loader));
+        if run.step.is_multiple_of(config.validate_every) || run.step == config.steps {
+            on_event(run.validate(&validation));
         }
         // A stopped run keeps the step it just made.
-        if step.is_multiple_of(config.checkpoint_every)
-            || step == config.steps
+        if run.step.is_multiple_of(config.checkpoint_every)
+            || run.step == config.steps
             || stop.load(Ordering::Relaxed)
         {
-            checkpoint::save(
-                &dir.checkpoint(),
-                family,
-                net.clone(),
-                &net_config,
-                &optim,
-                &checkpoint::Meta {
-                    step,
-                    validation: history.clone(),
-                    wall_s: earlier_wall + started.elapsed().as_secs_f64(),
-                    config: config.clone(),
-                },
-            )?;
-            on_event(Event::Checkpointed { step });
+            on_event(run.checkpoint(&dir)?);
         }
     }
-    let wall = started.elapsed().as_secs_f64();
-    let bytes = model_file::to_bytes(net.valid(), &net_config, family, step)?;
-    crate::io::write_atomic(&dir.model(), &bytes)
-        .map_err(|e| format!("{}: {e}", dir.model().display()))?;
-    let done = (step - first_step).max(1);
-    let report = Report {
-        family: family.name().into(),
-        family_hash: model_file::family_hash(family),
-        config: config.clone(),
-        net: net_config,
-        patch: spec.size as usize,
-        params,
-        macs_per_patch: macs(&net_config),
-        steps: step,
-        wall_s: wall,
-        total_wall_s: earlier_wall + wall,
-        mean_step_ms: wall * 1000.0 / done as f64,
-        samples_per_s: (done as usize * config.batch) as f64 / wall.max(1e-9),
-        data_wait_fraction: loader.waited.as_secs_f64() / wall.max(1e-9),
-        resumed_from,
-        final_loss: last,
-        validation: history,
-        model_file: dir.model().display().to_string(),
-    };
-    let json = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
-    crate::io::write_atomic(&dir.report(), json.as_bytes())
-        .map_err(|e| format!("{}: {e}", dir.report().display()))?;
-    Ok(report)
+    run.finish(&dir, &loader)
 }
 
-/// Validation metrics of the network in inference mode (batch norm on its running statistics).
-pub fn run_validation(
-    net: &Stage2Net,
-    family: &Family,
-    spec: &PatchSpec,
-    set: &[data::PatchSample],
-    classes: usize,
-) -> Metrics {
-    let net = net.valid();
-    let device = Device::flex();
-    let p = spec.size as usize;
-    let raw: Vec<_> = set
-        .chunks(32)
-        .flat_map(|chunk| {
-            let pixels: Vec<f32> = chunk.iter().flat_map(|s| s.input.iter().copied()).collect();
-            let x = burn::tensor::Tensor::<4>::from_data(
-                burn::tensor::TensorData::new(pixels, [chunk.len(), 1, p, p]),
-                &device,
-            );
-            raw_outputs(net.forward(x), classes)
+/// A run in progress: the network, its optimiser and what the report needs.
+struct Run<S: TrainStage> {
+    stage: Arc<S>,
+    config: TrainConfig,
+    device: Device,
+    net: S::Net,
+    optim: ModuleOptimizer,
+    step: u64,
+    first_step: u64,
+    params: usize,
+    history: Vec<(u64, S::Metrics)>,
+    last: S::Terms,
+    earlier_wall: f64,
+    resumed_from: Option<u64>,
+    started: Instant,
+}
+
+impl<S: TrainStage> Run<S> {
+    /// Fresh seeded weights, or the folder's checkpoint when resuming.
+    fn start(
+        stage: Arc<S>,
+        config: &TrainConfig,
+        dir: &OutDir,
+        resume: bool,
+    ) -> Result<Self, String> {
+        let device = Device::flex().autodiff();
+        // Seeded initial weights: a run is a function of its config (resumed runs load theirs).
+        device.seed(config.seed);
+        let mut net = stage.init(&device);
+        let mut optim = AdamConfig::new().init();
+        let (mut step, mut history, mut earlier_wall, mut resumed_from) =
+            (0, Vec::new(), 0.0, None);
+        if resume && dir.checkpoint().exists() {
+            let path = dir.checkpoint();
+            let state = checkpoint::load::<S::Metrics>(&path)?;
+            net = stage.load_model(&state.model, &path.display().to_string(), &device)?;
+            optim = optim
+                .from_bytes(state.optimiser)
+                .map_err(|e| format!("{}: optimiser state: {e}", path.display()))?;
+            step = state.meta.step;
+            history = state.meta.validation;
+            earlier_wall = state.meta.wall_s;
+            resumed_from = Some(step);
+        }
+        Ok(Self {
+            params: net.num_params(),
+            stage,
+            config: config.clone(),
+            device,
+            net,
+            optim,
+            step,
+            first_step: step,
+            history,
+            last: S::Terms::default(),
+            earlier_wall,
+            resumed_from,
+            started: Instant::now(),
         })
-        .collect();
-    validate::score(family, spec, set, &raw)
+    }
+
+    /// One optimiser step on a batch.
+    fn optimise(&mut self, samples: &[S::Sample]) {
+        let (loss, terms) = self.stage.loss(&self.net, samples, &self.device);
+        let grads = GradientsParams::from_grads(loss.backward(), &self.net);
+        let lr = self.config.learning_rate_at(self.step);
+        self.net = self.optim.step(lr, self.net.clone(), grads);
+        self.step += 1;
+        self.last = terms;
+    }
+
+    fn progress(&self, loader: &Loader<S::Sample>) -> StageEvent<S> {
+        let elapsed = self.started.elapsed().as_secs_f64().max(1e-9);
+        let samples = (self.step - self.first_step) as usize * self.config.batch;
+        Event::Step {
+            step: self.step,
+            loss: self.last,
+            samples_per_s: samples as f64 / elapsed,
+            data_wait: loader.waited.as_secs_f64() / elapsed,
+        }
+    }
+
+    fn validate(&mut self, set: &[S::Sample]) -> StageEvent<S> {
+        let metrics = self.stage.validate(&self.net, set);
+        self.history.push((self.step, metrics));
+        Event::Validated {
+            step: self.step,
+            metrics,
+        }
+    }
+
+    fn checkpoint(&self, dir: &OutDir) -> Result<StageEvent<S>, String> {
+        let model = self.stage.model_bytes(self.net.clone(), self.step)?;
+        let meta = checkpoint::Meta {
+            step: self.step,
+            validation: self.history.clone(),
+            wall_s: self.earlier_wall + self.started.elapsed().as_secs_f64(),
+            config: self.config.clone(),
+        };
+        checkpoint::save(&dir.checkpoint(), &model, &self.optim, &meta)?;
+        Ok(Event::Checkpointed { step: self.step })
+    }
+
+    /// Writes the final model and the report.
+    fn finish(self, dir: &OutDir, loader: &Loader<S::Sample>) -> Result<StageReport<S>, String> {
+        let wall = self.started.elapsed().as_secs_f64();
+        let bytes = self
+            .stage
+            .model_bytes(self.stage.inference(&self.net), self.step)?;
+        crate::io::write_atomic(&dir.model(), &bytes)
+            .map_err(|e| format!("{}: {e}", dir.model().display()))?;
+        let done = (self.step - self.first_step).max(1);
+        let family = self.stage.family();
+        let report = Report {
+            family: family.name().into(),
+            family_hash: crate::detect::stage2::model_file::family_hash(family),
+            config: self.config.clone(),
+            info: self.stage.info(),
+            params: self.params,
+            macs_per_patch: self.stage.macs(),
+            steps: self.step,
+            wall_s: wall,
+            total_wall_s: self.earlier_wall + wall,
+            mean_step_ms: wall * 1000.0 / done as f64,
+            samples_per_s: (done as usize * self.config.batch) as f64 / wall.max(1e-9),
+            data_wait_fraction: loader.waited.as_secs_f64() / wall.max(1e-9),
+            resumed_from: self.resumed_from,
+            final_loss: self.last,
+            validation: self.history,
+            model_file: dir.model().display().to_string(),
+        };
+        let json = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
+        crate::io::write_atomic(&dir.report(), json.as_bytes())
+            .map_err(|e| format!("{}: {e}", dir.report().display()))?;
+        Ok(report)
+    }
 }
 
 #[cfg(test)]

@@ -1,6 +1,6 @@
-use super::data::make_sample;
-use super::loss::{losses, Batch};
-use super::{train, Event, TrainConfig};
+use super::stage2::data::make_sample;
+use super::stage2::loss::{losses, Batch};
+use super::{train_keypoints as train, Event, TrainConfig};
 use crate::builtin;
 use crate::detect::stage2::anchors::PatchSpec;
 use crate::detect::stage2::net::NetConfig;

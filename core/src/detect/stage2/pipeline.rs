@@ -8,6 +8,7 @@ use super::decode::read_patch;
 use super::model_file::{self, ModelError, ModelHeader};
 use super::net::{NetConfig, Outputs, Stage2Net};
 use super::normalise_patch;
+use crate::detect::DetectedKeypoint;
 use crate::family::{Assignment, Family};
 use crate::geometry::{warp_bilinear, Camera, Homography};
 use crate::image::GrayImage;
@@ -25,20 +26,6 @@ pub struct Stage2 {
     pub header: ModelHeader,
     family: Family,
     device: Device,
-}
-
-/// One keypoint of a detected marker, in the family's canonical order.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct DetectedKeypoint {
-    /// Index in the family's keypoint list.
-    pub index: usize,
-    /// Image pixels.
-    pub x: f64,
-    pub y: f64,
-    pub category: usize,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub symbol: Option<u8>,
-    pub confidence: f64,
 }
 
 /// A marker decoded from one ROI.

@@ -1,0 +1,92 @@
+//! What `tagsmith detect` prints and the studio's Detect panel shows for one marker read from a
+//! ROI: one serialisable type, so both show the same thing.
+
+use super::DetectedKeypoint;
+use crate::geometry::PoseJson;
+use serde::{Deserialize, Serialize};
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MarkerReport {
+    pub family: String,
+    pub decoded: bool,
+    /// Present when `decoded`.
+    #[serde(flatten)]
+    pub marker: Option<DecodedMarker>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DecodedMarker {
+    pub id: usize,
+    /// Clockwise angle in degrees by which the marker is turned relative to the ROI's order.
+    pub rotation_deg: f64,
+    pub corrected_errors: usize,
+    pub fixed_mismatches: usize,
+    /// Stage-2 passes run.
+    pub iterations: usize,
+    /// The family's ROI points in the image, canonical order.
+    pub corners: [[f64; 2]; 4],
+    pub missing_keypoints: usize,
+    pub keypoints: Vec<DetectedKeypoint>,
+    pub pose: Option<PoseReport>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PoseReport {
+    #[serde(flatten)]
+    pub pose: PoseJson,
+    pub reprojection_rms_px: f64,
+    /// The marker size the pose assumes (ROI side).
+    pub side_mm: f64,
+    /// Where the camera came from ("given", or how it was guessed).
+    pub camera: String,
+}
+
+#[cfg(feature = "learn")]
+impl MarkerReport {
+    /// The report of a stage-2 result (`None`: nothing decoded); the pose, when solved, for a
+    /// marker of `side_mm` seen by a camera described by `camera`.
+    pub fn from_stage2(
+        family: &str,
+        result: Option<&super::stage2::Stage2Result>,
+        side_mm: f64,
+        camera: &str,
+    ) -> Self {
+        Self {
+            family: family.to_string(),
+            decoded: result.is_some(),
+            marker: result.map(|r| DecodedMarker {
+                id: r.id,
+                rotation_deg: r.rotation_deg,
+                corrected_errors: r.corrected_errors,
+                fixed_mismatches: r.fixed_mismatches,
+                iterations: r.iterations,
+                corners: r.corners,
+                missing_keypoints: r.missing,
+                keypoints: r.keypoints.clone(),
+                pose: r.pose.map(|p| PoseReport {
+                    pose: PoseJson::from(&p.pose),
+                    reprojection_rms_px: p.rms_px,
+                    side_mm,
+                    camera: camera.to_string(),
+                }),
+            }),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_undecoded_marker_reports_only_its_family() {
+        let r = MarkerReport {
+            family: "f".into(),
+            decoded: false,
+            marker: None,
+        };
+        let json = serde_json::to_value(&r).unwrap();
+        assert_eq!(json, serde_json::json!({"family": "f", "decoded": false}));
+        assert_eq!(serde_json::from_value::<MarkerReport>(json).unwrap(), r);
+    }
+}

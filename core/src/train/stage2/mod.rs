@@ -1,0 +1,143 @@
+//! Stage 2's part of training: the keypoint network on synthesised patches ([`data`]), its losses
+//! ([`loss`]) and its validation ([`validate`]).
+
+pub mod data;
+pub mod loss;
+pub mod validate;
+
+use super::stage::TrainStage;
+use crate::detect::stage2::anchors::PatchSpec;
+use crate::detect::stage2::model_file;
+use crate::detect::stage2::net::{macs, NetConfig, Stage2Net};
+use crate::detect::stage2::pipeline::raw_outputs;
+use crate::family::Family;
+use burn::module::Module;
+use burn::tensor::{Device, Tensor};
+use data::{make_sample, PatchSample};
+use loss::{losses, Batch, LossTerms};
+use serde::{Deserialize, Serialize};
+use validate::Metrics;
+
+/// Stage 2 of one family.
+pub struct KeypointStage {
+    family: Family,
+    spec: PatchSpec,
+    net: NetConfig,
+}
+
+/// What a stage-2 report says about the network.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct KeypointInfo {
+    pub net: NetConfig,
+    /// Patch side in pixels.
+    pub patch: usize,
+}
+
+impl KeypointStage {
+    pub fn new(family: &Family, width: usize) -> Self {
+        let spec = PatchSpec::for_family(family);
+        Self {
+            net: NetConfig {
+                classes: family.categories().len() + 1,
+                width,
+                patch: spec.size as usize,
+            },
+            family: family.clone(),
+            spec,
+        }
+    }
+}
+
+impl TrainStage for KeypointStage {
+    type Net = Stage2Net;
+    type Sample = PatchSample;
+    type Metrics = Metrics;
+    type Terms = LossTerms;
+    type Info = KeypointInfo;
+
+    fn family(&self) -> &Family {
+        &self.family
+    }
+
+    fn info(&self) -> KeypointInfo {
+        KeypointInfo {
+            net: self.net,
+            patch: self.spec.size as usize,
+        }
+    }
+
+    fn macs(&self) -> u64 {
+        macs(&self.net)
+    }
+
+    fn init(&self, device: &Device) -> Stage2Net {
+        self.net.init(device)
+    }
+
+    fn sample(&self, seed: u64) -> Result<PatchSample, String> {
+        make_sample(&self.family, &self.spec, seed)
+    }
+
+    fn loss(
+        &self,
+        net: &Stage2Net,
+        samples: &[PatchSample],
+        device: &Device,
+    ) -> (Tensor<1>, LossTerms) {
+        let batch = Batch::new(samples, self.net.classes, self.spec.size as usize, device);
+        losses(net.forward(batch.input.clone()), &batch)
+    }
+
+    fn validation_set(&self, size: usize) -> Result<Vec<PatchSample>, String> {
+        validate::validation_set(&self.family, &self.spec, size)
+    }
+
+    fn validate(&self, net: &Stage2Net, set: &[PatchSample]) -> Metrics {
+        run_validation(net, &self.family, &self.spec, set, self.net.classes)
+    }
+
+    fn inference(&self, net: &Stage2Net) -> Stage2Net {
+        net.valid()
+    }
+
+    fn model_bytes(&self, net: Stage2Net, step: u64) -> Result<Vec<u8>, String> {
+        model_file::to_bytes(net, &self.net, &self.family, step)
+    }
+
+    fn load_model(&self, bytes: &[u8], name: &str, device: &Device) -> Result<Stage2Net, String> {
+        let (net, header) =
+            model_file::from_bytes(bytes, name, &self.family, device).map_err(|e| e.to_string())?;
+        if header.net != self.net {
+            return Err(format!(
+                "{name}: the checkpoint's network ({:?}) differs from the requested one ({:?})",
+                header.net, self.net
+            ));
+        }
+        Ok(net)
+    }
+}
+
+/// Validation metrics of the network in inference mode (batch norm on its running statistics).
+pub fn run_validation(
+    net: &Stage2Net,
+    family: &Family,
+    spec: &PatchSpec,
+    set: &[PatchSample],
+    classes: usize,
+) -> Metrics {
+    let net = net.valid();
+    let device = Device::flex();
+    let p = spec.size as usize;
+    let raw: Vec<_> = set
+        .chunks(32)
+        .flat_map(|chunk| {
+            let pixels: Vec<f32> = chunk.iter().flat_map(|s| s.input.iter().copied()).collect();
+            let x = burn::tensor::Tensor::<4>::from_data(
+                burn::tensor::TensorData::new(pixels, [chunk.len(), 1, p, p]),
+                &device,
+            );
+            raw_outputs(net.forward(x), classes)
+        })
+        .collect();
+    validate::score(family, spec, set, &raw)
+}
