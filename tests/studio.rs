@@ -437,3 +437,34 @@ fn desktop_screenshot_under_xvfb() {
         "dark {dark}, light {light} of {n}"
     );
 }
+
+#[test]
+fn the_tabs_and_the_command_line_name_every_panel_from_one_list() {
+    use clap::ValueEnum;
+    let s = setup();
+    let mut h = studio(&s);
+    duplicate(&mut h, "aruco-4x4_50");
+    for panel in Panel::ALL {
+        h.get_by_label(panel.label()).click();
+        h.run();
+        assert_eq!(h.state().panel, panel);
+    }
+    let names: Vec<String> = Panel::value_variants()
+        .iter()
+        .map(|p| p.to_possible_value().unwrap().get_name().to_string())
+        .collect();
+    assert_eq!(names, ["families", "designer", "print"]);
+    for panel in Panel::ALL {
+        assert_eq!(Panel::from_str(panel.name(), false), Ok(panel));
+        assert_eq!(Panel::from_name(panel.name()), Some(panel));
+        let value = panel.to_possible_value().unwrap();
+        assert_eq!(
+            value.get_help().map(|h| h.to_string()).as_deref(),
+            Some(panel.help())
+        );
+    }
+    assert!(
+        Panel::from_str("Designer", false).is_err(),
+        "names are lowercase"
+    );
+}
