@@ -96,7 +96,11 @@ pub enum Notice {
 }
 
 /// What survives a restart (eframe persistence): the design, saved or not, and the print setup.
+///
+/// Every stored struct is `serde(default)`: state written by an older or newer studio (a field
+/// added or removed since) must still restore, or the unsaved design it carries would be lost.
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(default)]
 pub struct Persisted {
     pub panel: Option<Panel>,
     pub design: Option<FamilySpec>,
@@ -161,6 +165,23 @@ impl Studio {
             self.panel = panel;
         }
         self.print.settings = saved.print;
+    }
+
+    /// Restores the state kept by [`Studio::store`], as the app does at startup.
+    pub fn restore_from(&mut self, storage: &dyn eframe::Storage) {
+        match eframe::get_value::<Persisted>(storage, eframe::APP_KEY) {
+            Some(saved) => self.restore(saved),
+            // eframe only logs this at debug level, yet it may have just lost an unsaved design.
+            None if storage.get_string(eframe::APP_KEY).is_some() => {
+                log::warn!("the state kept from the last session could not be read; starting fresh")
+            }
+            None => {}
+        }
+    }
+
+    /// Keeps the state for the next start, in eframe's storage under its app key.
+    pub fn store(&self, storage: &mut dyn eframe::Storage) {
+        eframe::set_value(storage, eframe::APP_KEY, &self.persisted());
     }
 
     pub fn persisted(&self) -> Persisted {
@@ -530,11 +551,8 @@ pub struct StudioApp {
 impl StudioApp {
     pub fn new(cc: &eframe::CreationContext<'_>, files: Box<dyn FileAccess>) -> Self {
         let mut studio = Studio::new(files);
-        if let Some(saved) = cc
-            .storage
-            .and_then(|s| eframe::get_value::<Persisted>(s, eframe::APP_KEY))
-        {
-            studio.restore(saved);
+        if let Some(storage) = cc.storage {
+            studio.restore_from(storage);
         }
         Self { studio }
     }
@@ -546,7 +564,7 @@ impl eframe::App for StudioApp {
     }
 
     fn save(&mut self, storage: &mut dyn eframe::Storage) {
-        eframe::set_value(storage, eframe::APP_KEY, &self.studio.persisted());
+        self.studio.store(storage);
     }
 
     /// Unsaved designs are written to storage often, so a crash loses little.
