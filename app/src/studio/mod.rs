@@ -7,6 +7,7 @@ pub mod design;
 pub mod designer;
 pub mod families;
 pub mod files;
+pub mod job;
 pub mod preview;
 pub mod print;
 
