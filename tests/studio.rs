@@ -556,3 +556,47 @@ fn state_kept_by_another_version_still_restores_the_design_and_print_setup() {
         tagsmith_studio::studio::print::PrintSettings::default()
     );
 }
+
+#[test]
+fn the_families_panel_shows_each_family_drawn_with_its_numbers() {
+    let s = setup();
+    let mut h = studio(&s);
+    for name in tagsmith::builtin::names() {
+        let f = tagsmith::builtin::get(name).unwrap().unwrap();
+        let numbers = format!(
+            "{} keypoints · {} codes · minimum distance {}",
+            f.keypoints().len(),
+            f.codebook().len(),
+            f.spec().codebook.min_distance.expect("built-ins state it")
+        );
+        // Variants of one family (apriltag-36h11, -xo-, -xa-) share their numbers.
+        assert!(
+            h.query_all_by_label(&numbers).next().is_some(),
+            "{name}: {numbers}"
+        );
+        h.get_by_label(&format!("{name} marker"));
+    }
+    // Thumbnails are uploaded once, not every frame: a new upload would get a new id.
+    let ctx = h.ctx.clone();
+    let textures = || {
+        let mut ids: Vec<egui::TextureId> = (ctx.tex_manager().read().allocated())
+            .filter(|(_, meta)| meta.name.starts_with("family-thumbnail-"))
+            .map(|(id, _)| *id)
+            .collect();
+        ids.sort_by_key(|id| format!("{id:?}"));
+        ids
+    };
+    let before = textures();
+    assert_eq!(before.len(), h.state().library.entries.len());
+    for _ in 0..3 {
+        h.step();
+    }
+    assert_eq!(textures(), before);
+
+    // A click on a thumbnail selects its family.
+    h.get_by_label("aruco-6x6_250 marker").click();
+    h.run();
+    h.get_by_label("Duplicate as new design").click();
+    h.run();
+    assert_eq!(spec(&h).name, "aruco-6x6_250-copy");
+}
