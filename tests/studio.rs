@@ -467,6 +467,23 @@ fn the_tabs_and_the_command_line_name_every_panel_from_one_list() {
         Panel::from_str("Designer", false).is_err(),
         "names are lowercase"
     );
+
+    // As `tagsmith studio --panel` will declare it.
+    #[derive(clap::Parser)]
+    struct Args {
+        #[arg(long, value_enum)]
+        panel: Option<Panel>,
+    }
+    let parse = |args: &[&str]| <Args as clap::Parser>::try_parse_from(args).map(|a| a.panel);
+    assert_eq!(
+        parse(&["studio", "--panel", "print"]).unwrap(),
+        Some(Panel::Print)
+    );
+    assert_eq!(parse(&["studio"]).unwrap(), None);
+    let refused = parse(&["studio", "--panel", "training"])
+        .unwrap_err()
+        .to_string();
+    assert!(refused.contains("families, designer, print"), "{refused}");
 }
 
 /// eframe's storage, in memory.
