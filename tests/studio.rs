@@ -437,3 +437,183 @@ fn desktop_screenshot_under_xvfb() {
         "dark {dark}, light {light} of {n}"
     );
 }
+
+#[test]
+fn the_tabs_and_the_command_line_name_every_panel_from_one_list() {
+    use clap::ValueEnum;
+    let s = setup();
+    let mut h = studio(&s);
+    duplicate(&mut h, "aruco-4x4_50");
+    for panel in Panel::ALL {
+        h.get_by_label(panel.label()).click();
+        h.run();
+        assert_eq!(h.state().panel, panel);
+    }
+    let names: Vec<String> = Panel::value_variants()
+        .iter()
+        .map(|p| p.to_possible_value().unwrap().get_name().to_string())
+        .collect();
+    assert_eq!(names, ["families", "designer", "print"]);
+    for panel in Panel::ALL {
+        assert_eq!(Panel::from_str(panel.name(), false), Ok(panel));
+        assert_eq!(Panel::from_name(panel.name()), Some(panel));
+        let value = panel.to_possible_value().unwrap();
+        assert_eq!(
+            value.get_help().map(|h| h.to_string()).as_deref(),
+            Some(panel.help())
+        );
+    }
+    assert!(
+        Panel::from_str("Designer", false).is_err(),
+        "names are lowercase"
+    );
+
+    // As `tagsmith studio --panel` will declare it.
+    #[derive(clap::Parser)]
+    struct Args {
+        #[arg(long, value_enum)]
+        panel: Option<Panel>,
+    }
+    let parse = |args: &[&str]| <Args as clap::Parser>::try_parse_from(args).map(|a| a.panel);
+    assert_eq!(
+        parse(&["studio", "--panel", "print"]).unwrap(),
+        Some(Panel::Print)
+    );
+    assert_eq!(parse(&["studio"]).unwrap(), None);
+    let refused = parse(&["studio", "--panel", "training"])
+        .unwrap_err()
+        .to_string();
+    assert!(refused.contains("families, designer, print"), "{refused}");
+}
+
+/// eframe's storage, in memory.
+#[derive(Default)]
+struct Storage(std::collections::HashMap<String, String>);
+
+impl eframe::Storage for Storage {
+    fn get_string(&self, key: &str) -> Option<String> {
+        self.0.get(key).cloned()
+    }
+    fn set_string(&mut self, key: &str, value: String) {
+        self.0.insert(key.to_string(), value);
+    }
+    fn remove_string(&mut self, key: &str) {
+        self.0.remove(key);
+    }
+    fn flush(&mut self) {}
+}
+
+/// State written by another version of the studio (one that lacked a field this one has, and had
+/// one this one does not know) still brings back the unsaved design and the print setup.
+#[test]
+fn state_kept_by_another_version_still_restores_the_design_and_print_setup() {
+    let s = setup();
+    let mut h = studio(&s);
+    duplicate(&mut h, "aruco-5x5_100");
+    h.get_by_label("Quiet zone (cells)")
+        .set_value_accesskit(2.0);
+    h.run();
+    let edited = spec(&h);
+    {
+        let p = &mut h.state_mut().print.settings;
+        p.page = tagsmith_studio::studio::print::Page::A3;
+        p.landscape = true;
+        p.margin_mm = 15.0;
+        p.ids = "3-7".into();
+        p.cut_marks = true;
+    }
+    let mut storage = Storage::default();
+    h.state().store(&mut storage);
+    let ours = eframe::Storage::get_string(&storage, eframe::APP_KEY).expect("stored");
+
+    let fresh = || {
+        let mut files = FolderFiles::new(&s.out);
+        files.user_folder = Some(s.user.clone());
+        Studio::new(Box::new(files))
+    };
+    let restored = |text: String| {
+        let mut storage = Storage::default();
+        eframe::Storage::set_string(&mut storage, eframe::APP_KEY, text);
+        let mut again = fresh();
+        again.restore_from(&storage);
+        again
+    };
+
+    // The same version: everything comes back.
+    let again = restored(ours.clone());
+    assert_eq!(again.design.as_ref().unwrap().spec(), &edited);
+    assert_eq!(again.print.settings, h.state().print.settings);
+
+    // An older version had no cut marks; a newer one keeps a zoom and a theme.
+    let print_field = ",cut_marks:true)";
+    assert!(ours.contains(print_field), "{ours}");
+    let other = ours.replacen(print_field, ",zoom:2.5)", 1);
+    let other = format!("{},theme:\"dark\")", other.strip_suffix(')').unwrap());
+    let again = restored(other);
+    let design = again.design.as_ref().expect("the design is restored");
+    assert_eq!(design.spec(), &edited);
+    assert!(again.is_dirty(), "still marked unsaved");
+    assert_eq!(again.panel, Panel::Designer);
+    let p = &again.print.settings;
+    assert_eq!(p.page, tagsmith_studio::studio::print::Page::A3);
+    assert!(p.landscape);
+    assert_eq!((p.margin_mm, p.ids.as_str()), (15.0, "3-7"));
+    assert!(!p.cut_marks, "the missing field takes its default");
+
+    // A version from before printing kept no print setup at all. (The family has a `print` of
+    // its own; the studio's is the last field.)
+    let start = ours.rfind(",print:(").expect("a print field");
+    let end = start + ours[start..].find(')').unwrap() + 1;
+    let older = format!("{}{}", &ours[..start], &ours[end..]);
+    assert!(!older.contains("margin_mm"), "{older}");
+    let again = restored(older);
+    assert_eq!(again.design.as_ref().unwrap().spec(), &edited);
+    assert_eq!(
+        again.print.settings,
+        tagsmith_studio::studio::print::PrintSettings::default()
+    );
+}
+
+#[test]
+fn the_families_panel_shows_each_family_drawn_with_its_numbers() {
+    let s = setup();
+    let mut h = studio(&s);
+    for name in tagsmith::builtin::names() {
+        let f = tagsmith::builtin::get(name).unwrap().unwrap();
+        let numbers = format!(
+            "{} keypoints · {} codes · minimum distance {}",
+            f.keypoints().len(),
+            f.codebook().len(),
+            f.spec().codebook.min_distance.expect("built-ins state it")
+        );
+        // Variants of one family (apriltag-36h11, -xo-, -xa-) share their numbers.
+        assert!(
+            h.query_all_by_label(&numbers).next().is_some(),
+            "{name}: {numbers}"
+        );
+        h.get_by_label(&format!("{name} marker"));
+    }
+    // Thumbnails are uploaded once, not every frame: a new upload would get a new id.
+    let ctx = h.ctx.clone();
+    let textures = || {
+        let mut ids: Vec<egui::TextureId> = (ctx.tex_manager().read().allocated())
+            .filter(|(_, meta)| meta.name.starts_with("family-thumbnail-"))
+            .map(|(id, _)| *id)
+            .collect();
+        ids.sort_by_key(|id| format!("{id:?}"));
+        ids
+    };
+    let before = textures();
+    assert_eq!(before.len(), h.state().library.entries.len());
+    for _ in 0..3 {
+        h.step();
+    }
+    assert_eq!(textures(), before);
+
+    // A click on a thumbnail selects its family.
+    h.get_by_label("aruco-6x6_250 marker").click();
+    h.run();
+    h.get_by_label("Duplicate as new design").click();
+    h.run();
+    assert_eq!(spec(&h).name, "aruco-6x6_250-copy");
+}

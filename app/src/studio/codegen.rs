@@ -1,55 +1,48 @@
-//! Codebook generation without freezing the window: a worker thread on the desktop, reporting
-//! progress through atomics. A browser has no threads here, so there it runs in one go with a
+//! Codebook generation as a background [`Job`]. A browser runs it inline, so there it gets a
 //! smaller candidate budget.
 
-use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, Mutex};
+use super::job::{Job, Progress};
 use tagsmith::codebook::{generate, GenerateParams, GenerateReport};
 
 pub struct CodegenJob {
-    tried: Arc<AtomicU64>,
-    kept: Arc<AtomicU64>,
-    pub budget: u64,
-    result: Arc<Mutex<Option<Result<GenerateReport, String>>>>,
+    job: Job<Result<GenerateReport, String>>,
     /// The design revision the job was started for; a result for an older layout is dropped.
     pub revision: u64,
 }
 
 impl CodegenJob {
     pub fn start(params: GenerateParams, revision: u64) -> Self {
-        let job = Self {
-            tried: Arc::default(),
-            kept: Arc::default(),
-            budget: params.max_candidates,
-            result: Arc::default(),
-            revision,
-        };
-        let (tried, kept, result) = (job.tried.clone(), job.kept.clone(), job.result.clone());
-        let work = move || {
-            let report = generate(&params, &mut |t, k| {
-                tried.store(t, Ordering::Relaxed);
-                kept.store(k as u64, Ordering::Relaxed);
-            });
-            *result.lock().expect("only this job writes the result") = Some(report);
-        };
-        #[cfg(not(target_arch = "wasm32"))]
-        std::thread::spawn(work);
-        #[cfg(target_arch = "wasm32")]
-        work();
-        job
+        let budget = params.max_candidates.max(1);
+        let job = Job::start(move |r| {
+            // The core's search has no stop hook, so a cancelled job runs to its budget unseen;
+            // at least a job cancelled before it began costs nothing.
+            if r.is_cancelled() {
+                return Err("cancelled".into());
+            }
+            generate(&params, &mut |tried, kept| {
+                r.progress(
+                    tried as f32 / budget as f32,
+                    format!("{kept} codes, {tried} candidates"),
+                );
+            })
+        });
+        Self { job, revision }
     }
 
-    /// (candidates tried, codes kept so far).
-    pub fn progress(&self) -> (u64, u64) {
-        (
-            self.tried.load(Ordering::Relaxed),
-            self.kept.load(Ordering::Relaxed),
-        )
+    pub fn progress(&self) -> Progress {
+        self.job.progress()
+    }
+
+    /// Stops waiting for the job: its result will be dropped.
+    pub fn cancel(&self) {
+        self.job.cancel();
     }
 
     /// The result, once: `None` while the job runs.
-    pub fn take_result(&self) -> Option<Result<GenerateReport, String>> {
-        self.result.lock().ok()?.take()
+    pub fn take_result(&mut self) -> Option<Result<GenerateReport, String>> {
+        self.job
+            .take()
+            .map(|outcome| outcome.and_then(|report| report))
     }
 }
 

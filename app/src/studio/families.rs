@@ -2,9 +2,15 @@
 //! and the way into the designer (duplicate a built-in, edit one of the user's).
 
 use super::files::{user_families, FileAccess, OpenedFile};
-use super::Studio;
+use super::{preview, Studio};
+use egui::{ColorImage, TextureHandle, TextureOptions};
 use std::path::PathBuf;
 use tagsmith::family::{Family, FamilySpec};
+
+/// Pixels across a thumbnail: twice its size on screen, so it stays sharp on high-DPI displays.
+const THUMBNAIL_PX: u32 = 112;
+/// Points across a thumbnail on screen.
+const THUMBNAIL_SIZE: f32 = 56.0;
 
 #[derive(Debug, Clone, PartialEq)]
 pub enum Origin {
@@ -26,6 +32,27 @@ pub struct Entry {
     /// matching codebooks without validating every family each frame.
     pub q: usize,
     pub code_len: usize,
+    pub keypoints: usize,
+    pub codes: usize,
+    thumbnail: Thumbnail,
+}
+
+/// ID 0 drawn by the core's renderer when the entry is made (`None` when the family cannot draw
+/// it), and its texture, uploaded on first show. The entry is rebuilt when its file changes, so
+/// the texture never goes stale and no frame renders a thumbnail again.
+#[derive(Clone, Default)]
+struct Thumbnail {
+    image: Option<ColorImage>,
+    texture: Option<TextureHandle>,
+}
+
+impl std::fmt::Debug for Thumbnail {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Thumbnail")
+            .field("to_upload", &self.image.as_ref().map(|i| i.size))
+            .field("uploaded", &self.texture.as_ref().map(|t| t.size()))
+            .finish()
+    }
 }
 
 impl Entry {
@@ -35,8 +62,45 @@ impl Entry {
             origin,
             q: family.q(),
             code_len: family.code_len(),
+            keypoints: family.keypoints().len(),
+            codes: family.codebook().len(),
+            thumbnail: Thumbnail {
+                image: thumbnail(family),
+                texture: None,
+            },
         }
     }
+
+    /// Keypoints, codes and the family's stated minimum distance, as the gallery shows them.
+    pub fn summary(&self) -> String {
+        let distance = self
+            .spec
+            .codebook
+            .min_distance
+            .map_or("not stated".into(), |d| d.to_string());
+        format!(
+            "{} keypoints · {} codes · minimum distance {distance}",
+            self.keypoints, self.codes
+        )
+    }
+
+    fn texture(&mut self, ctx: &egui::Context) -> Option<&TextureHandle> {
+        let t = &mut self.thumbnail;
+        if t.texture.is_none() {
+            let image = t.image.take()?;
+            let name = format!("family-thumbnail-{}", self.spec.name);
+            t.texture = Some(ctx.load_texture(name, image, TextureOptions::LINEAR));
+        }
+        t.texture.as_ref()
+    }
+}
+
+fn thumbnail(family: &Family) -> Option<ColorImage> {
+    let scene =
+        tagsmith::render::marker_scene(family, 0, tagsmith::render::SceneOptions::default())
+            .ok()?;
+    let pixmap = tagsmith::render::raster::rasterize_width(&scene, THUMBNAIL_PX).ok()?;
+    Some(preview::pixmap_image(&pixmap))
 }
 
 #[derive(Default)]
@@ -165,26 +229,7 @@ pub fn show(studio: &mut Studio, ui: &mut egui::Ui) {
         }
     });
     ui.separator();
-    egui::ScrollArea::vertical().show(ui, |ui| {
-        egui::Grid::new("families")
-            .num_columns(3)
-            .striped(true)
-            .show(ui, |ui| {
-                for (i, e) in studio.library.entries.iter().enumerate() {
-                    let selected = studio.library.selected == Some(i);
-                    if ui.selectable_label(selected, &e.spec.name).clicked() {
-                        studio.library.selected = Some(i);
-                    }
-                    ui.label(&e.spec.title);
-                    ui.weak(match &e.origin {
-                        Origin::Builtin => "built-in".to_string(),
-                        Origin::UserFolder(_) => "your folder".to_string(),
-                        Origin::Opened { name, .. } => format!("opened: {name}"),
-                    });
-                    ui.end_row();
-                }
-            });
-    });
+    egui::ScrollArea::vertical().show(ui, |ui| gallery(studio, ui));
     if let Some(duplicate) = action {
         let entry = studio.library.entries[studio.library.selected.expect("enabled")].clone();
         if duplicate {
@@ -201,4 +246,52 @@ pub fn show(studio: &mut Studio, ui: &mut egui::Ui) {
             studio.start_design(entry.spec, path, true);
         }
     }
+}
+
+/// One row per family: its marker, name and title, summary and origin. Clicking the marker or the
+/// name selects it.
+fn gallery(studio: &mut Studio, ui: &mut egui::Ui) {
+    let library = &mut studio.library;
+    egui::Grid::new("families")
+        .num_columns(4)
+        .striped(true)
+        .spacing([12.0, 6.0])
+        .show(ui, |ui| {
+            for (i, e) in library.entries.iter_mut().enumerate() {
+                let selected = library.selected == Some(i);
+                let mut clicked = match e.texture(ui.ctx()) {
+                    Some(tex) => {
+                        let [w, h] = tex.size().map(|n| n as f32);
+                        let size = egui::vec2(w, h) * (THUMBNAIL_SIZE / w.max(h));
+                        let image = egui::Image::new(tex)
+                            .alt_text(format!("{} marker", e.spec.name))
+                            .fit_to_exact_size(size)
+                            .sense(egui::Sense::click());
+                        ui.add_sized(egui::Vec2::splat(THUMBNAIL_SIZE), image)
+                            .clicked()
+                    }
+                    None => {
+                        ui.add_sized(
+                            egui::Vec2::splat(THUMBNAIL_SIZE),
+                            egui::Label::new(egui::RichText::new("no preview").weak()),
+                        );
+                        false
+                    }
+                };
+                ui.vertical(|ui| {
+                    clicked |= ui.selectable_label(selected, &e.spec.name).clicked();
+                    ui.weak(&e.spec.title);
+                });
+                if clicked {
+                    library.selected = Some(i);
+                }
+                ui.label(e.summary());
+                ui.weak(match &e.origin {
+                    Origin::Builtin => "built-in".to_string(),
+                    Origin::UserFolder(_) => "your folder".to_string(),
+                    Origin::Opened { name, .. } => format!("opened: {name}"),
+                });
+                ui.end_row();
+            }
+        });
 }

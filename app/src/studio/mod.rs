@@ -7,6 +7,7 @@ pub mod design;
 pub mod designer;
 pub mod families;
 pub mod files;
+pub mod job;
 pub mod preview;
 pub mod print;
 
@@ -17,11 +18,75 @@ use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 use tagsmith::family::FamilySpec;
 
+/// The studio's panels. Everything that lists them (the tab bar, the dispatch in
+/// [`Studio::ui`], the command line's `--panel` and its help) reads [`Panel::ALL`] and the methods
+/// below, so that a new panel is added here and nowhere else.
+///
+/// The serde names are the variant names, as earlier versions stored them; the command line uses
+/// [`Panel::name`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Panel {
     Families,
     Designer,
     Print,
+}
+
+impl Panel {
+    /// In tab order.
+    pub const ALL: [Panel; 3] = [Panel::Families, Panel::Designer, Panel::Print];
+
+    /// The tab's text.
+    pub fn label(self) -> &'static str {
+        match self {
+            Panel::Families => "Families",
+            Panel::Designer => "Designer",
+            Panel::Print => "Print",
+        }
+    }
+
+    /// One line on what the panel is for: the tab's hover text and the `--panel` value's help.
+    pub fn help(self) -> &'static str {
+        match self {
+            Panel::Families => "built-in families and your own; start a design from one",
+            Panel::Designer => "edit the design: layout, categories, keypoints, ROI, codebook",
+            Panel::Print => "lay the design's markers out on pages and export PDF or SVG",
+        }
+    }
+
+    /// The stable lowercase name, as typed on the command line (`--panel designer`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Panel::Families => "families",
+            Panel::Designer => "designer",
+            Panel::Print => "print",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<Panel> {
+        Panel::ALL.into_iter().find(|p| p.name() == name)
+    }
+
+    fn show(self, studio: &mut Studio, ui: &mut egui::Ui, ctx: &egui::Context) {
+        match self {
+            Panel::Families => families::show(studio, ui),
+            Panel::Designer => designer::show(studio, ui, ctx),
+            Panel::Print => print::show(studio, ui, ctx),
+        }
+    }
+}
+
+/// Written by hand rather than derived so that the values and their help come from
+/// [`Panel::name`] and [`Panel::help`] instead of a second copy in doc comments. clap exists on
+/// the desktop only.
+#[cfg(not(target_arch = "wasm32"))]
+impl clap::ValueEnum for Panel {
+    fn value_variants<'a>() -> &'a [Self] {
+        &Panel::ALL
+    }
+
+    fn to_possible_value(&self) -> Option<clap::builder::PossibleValue> {
+        Some(clap::builder::PossibleValue::new(self.name()).help(self.help()))
+    }
 }
 
 /// The message line at the bottom of the window.
@@ -32,7 +97,11 @@ pub enum Notice {
 }
 
 /// What survives a restart (eframe persistence): the design, saved or not, and the print setup.
+///
+/// Every stored struct is `serde(default)`: state written by an older or newer studio (a field
+/// added or removed since) must still restore, or the unsaved design it carries would be lost.
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(default)]
 pub struct Persisted {
     pub panel: Option<Panel>,
     pub design: Option<FamilySpec>,
@@ -97,6 +166,23 @@ impl Studio {
             self.panel = panel;
         }
         self.print.settings = saved.print;
+    }
+
+    /// Restores the state kept by [`Studio::store`], as the app does at startup.
+    pub fn restore_from(&mut self, storage: &dyn eframe::Storage) {
+        match eframe::get_value::<Persisted>(storage, eframe::APP_KEY) {
+            Some(saved) => self.restore(saved),
+            // eframe only logs this at debug level, yet it may have just lost an unsaved design.
+            None if storage.get_string(eframe::APP_KEY).is_some() => {
+                log::warn!("the state kept from the last session could not be read; starting fresh")
+            }
+            None => {}
+        }
+    }
+
+    /// Keeps the state for the next start, in eframe's storage under its app key.
+    pub fn store(&self, storage: &mut dyn eframe::Storage) {
+        eframe::set_value(storage, eframe::APP_KEY, &self.persisted());
     }
 
     pub fn persisted(&self) -> Persisted {
@@ -274,11 +360,7 @@ impl Studio {
 
         egui::Panel::top("studio-top").show(ui, |ui| self.top_bar(ui));
         egui::Panel::bottom("studio-notice").show(ui, |ui| self.notice_bar(ui));
-        egui::CentralPanel::default_margins().show(ui, |ui| match self.panel {
-            Panel::Families => families::show(self, ui),
-            Panel::Designer => designer::show(self, ui, &ctx),
-            Panel::Print => print::show(self, ui, &ctx),
-        });
+        egui::CentralPanel::default_margins().show(ui, |ui| self.panel.show(self, ui, &ctx));
         self.confirm_replace(&ctx);
         self.confirm_quit(&ctx);
     }
@@ -287,9 +369,10 @@ impl Studio {
         ui.horizontal(|ui| {
             ui.heading("Tagsmith");
             ui.separator();
-            ui.selectable_value(&mut self.panel, Panel::Families, "Families");
-            ui.selectable_value(&mut self.panel, Panel::Designer, "Designer");
-            ui.selectable_value(&mut self.panel, Panel::Print, "Print");
+            for panel in Panel::ALL {
+                ui.selectable_value(&mut self.panel, panel, panel.label())
+                    .on_hover_text(panel.help());
+            }
             ui.separator();
             if ui.button("Open family file…").clicked() {
                 self.files.request_open(Purpose::Family);
@@ -469,11 +552,8 @@ pub struct StudioApp {
 impl StudioApp {
     pub fn new(cc: &eframe::CreationContext<'_>, files: Box<dyn FileAccess>) -> Self {
         let mut studio = Studio::new(files);
-        if let Some(saved) = cc
-            .storage
-            .and_then(|s| eframe::get_value::<Persisted>(s, eframe::APP_KEY))
-        {
-            studio.restore(saved);
+        if let Some(storage) = cc.storage {
+            studio.restore_from(storage);
         }
         Self { studio }
     }
@@ -485,7 +565,7 @@ impl eframe::App for StudioApp {
     }
 
     fn save(&mut self, storage: &mut dyn eframe::Storage) {
-        eframe::set_value(storage, eframe::APP_KEY, &self.studio.persisted());
+        self.studio.store(storage);
     }
 
     /// Unsaved designs are written to storage often, so a crash loses little.

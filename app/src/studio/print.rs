@@ -15,8 +15,9 @@ pub enum Page {
     Letter,
 }
 
-/// The print setup, kept across restarts.
+/// The print setup, kept across restarts (`serde(default)`: see [`super::Persisted`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
 pub struct PrintSettings {
     pub page: Page,
     pub landscape: bool,

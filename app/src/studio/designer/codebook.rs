@@ -82,11 +82,13 @@ pub(super) fn show(studio: &mut Studio, ui: &mut Ui) {
             studio.designer.job = Some(CodegenJob::start(params, revision));
         }
         if let Some(job) = &studio.designer.job {
-            let (tried, kept) = job.progress();
-            ui.add(
-                egui::ProgressBar::new(tried as f32 / job.budget as f32)
-                    .text(format!("{kept} codes, {tried} candidates")),
-            );
+            let progress = job.progress();
+            ui.add(egui::ProgressBar::new(progress.fraction).text(progress.message));
+            if ui.button("Cancel generation").clicked() {
+                job.cancel();
+                studio.designer.job = None;
+                studio.info("codebook generation cancelled");
+            }
         }
     });
     ui.separator();
@@ -161,7 +163,7 @@ pub fn import_table(studio: &mut Studio, name: &str, bytes: &[u8]) {
 }
 
 pub(super) fn poll(studio: &mut Studio, ctx: &egui::Context) {
-    let Some(job) = &studio.designer.job else {
+    let Some(job) = &mut studio.designer.job else {
         return;
     };
     match job.take_result() {
