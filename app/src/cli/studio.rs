@@ -2,14 +2,15 @@
 
 use super::common::load_family;
 use super::error::{failure, Result};
+use tagsmith_studio::studio::Panel;
 
 #[derive(clap::Args, Debug, Default)]
 pub struct StudioArgs {
     /// Start designing from this family: a built-in (duplicated) or a family JSON file (edited).
     pub family: Option<String>,
     /// The panel to show first.
-    #[arg(long, value_parser = ["families", "designer", "print"])]
-    pub panel: Option<String>,
+    #[arg(long, value_enum)]
+    pub panel: Option<Panel>,
     /// Start from a clean slate instead of the design kept from the last session.
     #[arg(long)]
     pub fresh: bool,
@@ -18,7 +19,7 @@ pub struct StudioArgs {
 impl StudioArgs {
     /// Opens the studio window; a family given on the command line starts the designer with it.
     pub fn run(self) -> Result<()> {
-        use tagsmith_studio::studio::{files::NativeFiles, Panel, StudioApp};
+        use tagsmith_studio::studio::{files::NativeFiles, StudioApp};
         let start = match &self.family {
             Some(name) => Some(load_family(name)?),
             None => None,
@@ -56,11 +57,8 @@ impl StudioArgs {
                     }
                     app.studio.start_design(spec, path, !builtin);
                 }
-                match self.panel.as_deref() {
-                    Some("families") => app.studio.panel = Panel::Families,
-                    Some("designer") => app.studio.panel = Panel::Designer,
-                    Some("print") => app.studio.panel = Panel::Print,
-                    _ => {}
+                if let Some(panel) = self.panel {
+                    app.studio.panel = panel;
                 }
                 Ok(Box::new(app))
             }),
