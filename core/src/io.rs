@@ -1,18 +1,40 @@
-//! Writing files atomically: a reader (or a crash) never sees a half-written output.
+//! Writing files atomically: a reader (or a crash) never sees a half-written output; and floats
+//! that JSON cannot hold ([`json_float`]).
 
 use std::io::Write;
 use std::path::Path;
 
 /// Writes `bytes` to a temporary file beside `path`, flushes it to disk, then renames it over
 /// `path`. On any error the previous content of `path` is untouched.
+///
+/// A symlink stays a symlink: the file it points to is written. A FIFO or a device is written
+/// through, never replaced by a regular file; a folder is refused. Temporary files that a killed
+/// run left in the folder are removed.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    let path = &follow_symlinks(path)?;
+    match std::fs::metadata(path) {
+        Ok(m) if m.is_dir() => {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::IsADirectory,
+                "it is a folder, not a file",
+            ))
+        }
+        Ok(m) if !m.is_file() => {
+            // A pipe or a device: the reader on the other side wants the bytes, and renaming a
+            // file over the node would destroy it.
+            let mut node = std::fs::OpenOptions::new().write(true).open(path)?;
+            return node.write_all(bytes);
+        }
+        _ => {}
+    }
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
     };
+    remove_stale_temporaries(dir);
     let mut tmp = tempfile::Builder::new()
-        .prefix(".tagsmith-")
-        .suffix(".tmp")
+        .prefix(&format!("{TEMP_PREFIX}{}-", std::process::id()))
+        .suffix(TEMP_SUFFIX)
         .tempfile_in(dir)?;
     tmp.write_all(bytes)?;
     // Temporary files are private (0600); an output file should be as readable as any other,
@@ -29,6 +51,138 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     Ok(())
 }
 
+/// Serde for `f64`/`f32` fields that may be NaN or infinite (`#[serde(with =
+/// "crate::io::json_float")]`): finite values are plain JSON numbers, the others the strings
+/// `"NaN"`, `"inf"`, `"-inf"` (JSON has no such numbers; serde_json would write `null` and then
+/// refuse to read it back).
+pub mod json_float {
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<F: Float, S: Serializer>(v: &F, s: S) -> Result<S::Ok, S::Error> {
+        let x = v.to_f64();
+        if x.is_finite() {
+            v.serialize_finite(s)
+        } else if x.is_nan() {
+            s.serialize_str("NaN")
+        } else if x > 0.0 {
+            s.serialize_str("inf")
+        } else {
+            s.serialize_str("-inf")
+        }
+    }
+
+    pub fn deserialize<'de, F: Float, D: Deserializer<'de>>(d: D) -> Result<F, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Repr {
+            Number(f64),
+            Text(String),
+            // Files written before this encoding hold `null` where the value was NaN.
+            Null(()),
+        }
+        let v = match Repr::deserialize(d)? {
+            Repr::Number(v) => v,
+            Repr::Null(()) => f64::NAN,
+            Repr::Text(t) => match t.as_str() {
+                "NaN" => f64::NAN,
+                "inf" => f64::INFINITY,
+                "-inf" => f64::NEG_INFINITY,
+                other => {
+                    return Err(serde::de::Error::custom(format!(
+                    "{other:?} is not a number (expected a number, \"NaN\", \"inf\" or \"-inf\")"
+                )))
+                }
+            },
+        };
+        Ok(F::from_f64(v))
+    }
+
+    /// The float types the module serves; finite values keep their own width in JSON.
+    pub trait Float: Copy {
+        fn to_f64(self) -> f64;
+        fn from_f64(v: f64) -> Self;
+        fn serialize_finite<S: Serializer>(self, s: S) -> Result<S::Ok, S::Error>;
+    }
+    impl Float for f64 {
+        fn to_f64(self) -> f64 {
+            self
+        }
+        fn from_f64(v: f64) -> Self {
+            v
+        }
+        fn serialize_finite<S: Serializer>(self, s: S) -> Result<S::Ok, S::Error> {
+            s.serialize_f64(self)
+        }
+    }
+    impl Float for f32 {
+        fn to_f64(self) -> f64 {
+            self as f64
+        }
+        fn from_f64(v: f64) -> Self {
+            v as f32
+        }
+        fn serialize_finite<S: Serializer>(self, s: S) -> Result<S::Ok, S::Error> {
+            s.serialize_f32(self)
+        }
+    }
+}
+
+const TEMP_PREFIX: &str = ".tagsmith-";
+const TEMP_SUFFIX: &str = ".tmp";
+
+/// Where a chain of symlinks ends (the path itself when it is not one); the end need not exist.
+fn follow_symlinks(path: &Path) -> std::io::Result<std::path::PathBuf> {
+    let mut current = path.to_path_buf();
+    // The kernel's own limit on a chain (ELOOP).
+    for _ in 0..40 {
+        match std::fs::symlink_metadata(&current) {
+            Ok(m) if m.file_type().is_symlink() => {
+                let target = std::fs::read_link(&current)?;
+                current = match current.parent() {
+                    Some(parent) if target.is_relative() => parent.join(target),
+                    _ => target,
+                };
+            }
+            _ => return Ok(current),
+        }
+    }
+    Err(std::io::Error::other("too many levels of symbolic links"))
+}
+
+/// Removes `.tagsmith-PID-*.tmp` files whose writer is gone (a killed process): on Linux when its
+/// process no longer exists, elsewhere (and for names without a PID) once an hour old.
+fn remove_stale_temporaries(dir: &Path) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(name) = name.to_str() else { continue };
+        let Some(middle) = name
+            .strip_prefix(TEMP_PREFIX)
+            .and_then(|n| n.strip_suffix(TEMP_SUFFIX))
+        else {
+            continue;
+        };
+        let pid = middle.split('-').next().and_then(|p| p.parse::<u32>().ok());
+        let writer_gone = match pid {
+            Some(pid) if Path::new("/proc/self").exists() => {
+                pid != std::process::id() && !Path::new(&format!("/proc/{pid}")).exists()
+            }
+            _ => false,
+        };
+        let old = entry
+            .metadata()
+            .and_then(|m| m.modified())
+            .ok()
+            .and_then(|t| t.elapsed().ok())
+            .is_some_and(|age| age.as_secs() > 3600);
+        if writer_gone || old {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -41,6 +195,107 @@ mod tests {
         write_atomic(&path, b"second").unwrap();
         assert_eq!(std::fs::read(&path).unwrap(), b"second");
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn non_finite_floats_round_trip_through_json() {
+        #[derive(serde::Serialize, serde::Deserialize, PartialEq, Debug)]
+        struct M {
+            #[serde(with = "json_float")]
+            a: f64,
+            #[serde(with = "json_float")]
+            b: f32,
+        }
+        for (a, b) in [
+            (f64::NAN, 1.5f32),
+            (f64::INFINITY, f32::NEG_INFINITY),
+            (0.25, f32::NAN),
+        ] {
+            let text = serde_json::to_string(&M { a, b }).unwrap();
+            let back: M = serde_json::from_str(&text).unwrap();
+            assert!(back.a == a || (a.is_nan() && back.a.is_nan()), "{text}");
+            assert!(back.b == b || (b.is_nan() && back.b.is_nan()), "{text}");
+        }
+        // What earlier checkpoints hold for NaN.
+        let old: M = serde_json::from_str(r#"{"a": null, "b": 2}"#).unwrap();
+        assert!(old.a.is_nan() && old.b == 2.0);
+        assert!(serde_json::from_str::<M>(r#"{"a": "many", "b": 2}"#).is_err());
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_symlink_stays_a_symlink_and_its_target_is_written() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("real.txt");
+        std::fs::write(&target, b"old").unwrap();
+        let link = dir.path().join("link.txt");
+        std::os::unix::fs::symlink("real.txt", &link).unwrap();
+        write_atomic(&link, b"new").unwrap();
+        assert!(std::fs::symlink_metadata(&link)
+            .unwrap()
+            .file_type()
+            .is_symlink());
+        assert_eq!(std::fs::read(&target).unwrap(), b"new");
+        // A dangling link creates its target.
+        let dangling = dir.path().join("dangling.txt");
+        std::os::unix::fs::symlink("made.txt", &dangling).unwrap();
+        write_atomic(&dangling, b"x").unwrap();
+        assert!(std::fs::symlink_metadata(&dangling)
+            .unwrap()
+            .file_type()
+            .is_symlink());
+        assert_eq!(std::fs::read(dir.path().join("made.txt")).unwrap(), b"x");
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_device_is_written_through_not_replaced() {
+        let null = Path::new("/dev/null");
+        if !null.exists() {
+            return;
+        }
+        write_atomic(null, b"discarded").unwrap();
+        use std::os::unix::fs::FileTypeExt;
+        assert!(std::fs::metadata(null)
+            .unwrap()
+            .file_type()
+            .is_char_device());
+        // /dev/full takes nothing: an error, and the node is still a device.
+        let full = Path::new("/dev/full");
+        if full.exists() {
+            assert!(write_atomic(full, b"x").is_err());
+            assert!(std::fs::metadata(full)
+                .unwrap()
+                .file_type()
+                .is_char_device());
+        }
+    }
+
+    #[test]
+    fn a_folder_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let err = write_atomic(dir.path(), b"x").unwrap_err();
+        assert_eq!(err.kind(), std::io::ErrorKind::IsADirectory);
+    }
+
+    #[test]
+    fn temporaries_of_a_killed_writer_are_removed_by_the_next_write() {
+        let dir = tempfile::tempdir().unwrap();
+        // PID 0 is never a user process; an hour-old nameless one is stale too.
+        let dead = dir.path().join(".tagsmith-0-abc.tmp");
+        std::fs::write(&dead, b"half").unwrap();
+        let ours = dir
+            .path()
+            .join(format!(".tagsmith-{}-live.tmp", std::process::id()));
+        std::fs::write(&ours, b"in progress").unwrap();
+        write_atomic(&dir.path().join("out.txt"), b"x").unwrap();
+        if Path::new("/proc/self").exists() {
+            assert!(!dead.exists());
+        }
+        assert!(
+            ours.exists(),
+            "a live writer's temporary file is left alone"
+        );
     }
 
     #[test]

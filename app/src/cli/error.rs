@@ -93,6 +93,16 @@ impl From<ImageError> for CliError {
     }
 }
 
+/// A checkpoint that cannot be resumed is the user's folder; the rest is the run failing.
+impl From<tagsmith::train::TrainError> for CliError {
+    fn from(e: tagsmith::train::TrainError) -> Self {
+        match e {
+            tagsmith::train::TrainError::Checkpoint(_) => CliError::bad_input(e),
+            _ => CliError::failure(e),
+        }
+    }
+}
+
 impl From<GeometryError> for CliError {
     fn from(e: GeometryError) -> Self {
         CliError::bad_input(e)

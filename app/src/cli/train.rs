@@ -1,7 +1,7 @@
 //! `train`: the learned stage-2 detector's training.
 
 use super::common::{load_family, progress_bar};
-use super::error::{bad_input, Classify, Result};
+use super::error::{bad_input, Result};
 use clap::{Args, ValueEnum};
 use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
@@ -93,7 +93,14 @@ impl TrainArgs {
             }
         };
         let stop = AtomicBool::new(false);
-        let report = train::train_keypoints(&family, &config, &out, self.resume, &stop, &mut |event| match event {
+        let report = train::train_keypoints(
+            &family,
+            &config,
+            &out,
+            self.resume,
+            &stop,
+            &mut |event| {
+                match event {
             Event::Started {
                 family,
                 first_step,
@@ -146,8 +153,9 @@ impl TrainArgs {
                 metrics.keypoint_median_px
             )),
             Event::Checkpointed { .. } => {}
-        })
-        .failure()?;
+        }
+            },
+        )?;
         bar.finish();
         println!(
             "{} steps in {:.0} s ({:.1} ms/step, {:.0} samples/s, data wait {:.1} %); model: {}",

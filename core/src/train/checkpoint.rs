@@ -1,10 +1,15 @@
 //! One checkpoint file, rewritten atomically (temporary file, fsync, rename): a magic line, the
 //! run's state as JSON, the model in its stage's model-file format (so it carries the family
-//! check), and the optimiser state (Adam moments) in burnpack. A kill at any moment leaves the
-//! previous checkpoint or the new one, never a mix.
+//! check), the optimiser state (Adam moments) in burnpack, and a checksum of all of it. A kill at
+//! any moment leaves the previous checkpoint or the new one, never a mix; an edited or damaged
+//! file (a changed step, trailing bytes) fails the checksum.
+//!
+//! JSON has no NaN or infinity, and a validation that found nothing has NaN errors: the stages'
+//! metrics write such floats as strings (`crate::io::json_float`), so a checkpoint gives back
+//! exactly the values it was given.
 
 use super::TrainConfig;
-use burn::optim::ModuleOptimizer;
+use crate::detect::stage2::model_file::fnv1a;
 use burn::tensor::Bytes;
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
@@ -35,15 +40,16 @@ fn section(out: &mut Vec<u8>, bytes: &[u8]) {
 pub fn save<M: Serialize>(
     path: &Path,
     model: &[u8],
-    optim: &ModuleOptimizer,
+    optimiser: &[u8],
     meta: &Meta<M>,
 ) -> Result<(), String> {
-    let optimiser = optim.into_bytes().map_err(|e| e.to_string())?;
     let json = serde_json::to_vec(meta).map_err(|e| e.to_string())?;
     let mut out = MAGIC.to_vec();
     section(&mut out, &json);
     section(&mut out, model);
-    section(&mut out, &optimiser);
+    section(&mut out, optimiser);
+    let sum = fnv1a(&out);
+    out.extend_from_slice(&sum.to_le_bytes());
     crate::io::write_atomic(path, &out).map_err(|e| format!("{}: {e}", path.display()))
 }
 
@@ -51,7 +57,15 @@ pub fn load<M: DeserializeOwned>(path: &Path) -> Result<State<M>, String> {
     let name = path.display().to_string();
     let bytes = std::fs::read(path).map_err(|e| format!("{name}: {e}"))?;
     let corrupt = || format!("{name}: not a Tagsmith checkpoint, or a damaged one");
-    let mut rest = bytes.strip_prefix(MAGIC).ok_or_else(corrupt)?;
+    let (body, sum) = bytes
+        .split_at_checked(bytes.len().saturating_sub(8))
+        .ok_or_else(corrupt)?;
+    if sum.len() != 8 || fnv1a(body).to_le_bytes() != sum {
+        return Err(format!(
+            "{name}: the checkpoint is damaged or was edited (its checksum does not match)"
+        ));
+    }
+    let mut rest = body.strip_prefix(MAGIC).ok_or_else(corrupt)?;
     let mut next = || -> Result<&[u8], String> {
         let len = rest
             .get(..8)
@@ -64,6 +78,9 @@ pub fn load<M: DeserializeOwned>(path: &Path) -> Result<State<M>, String> {
     let meta: Meta<M> = serde_json::from_slice(next()?).map_err(|e| format!("{name}: {e}"))?;
     let model = next()?.to_vec();
     let optimiser = Bytes::from_bytes_vec(next()?.to_vec());
+    if !rest.is_empty() {
+        return Err(corrupt());
+    }
     Ok(State {
         model,
         optimiser,

@@ -124,6 +124,24 @@ pub struct Report<I, M, L> {
     pub model_file: String,
 }
 
+/// Why a run stopped or could not start. Each message names the file or step it concerns.
+#[derive(Debug, thiserror::Error)]
+pub enum TrainError {
+    /// The folder's checkpoint cannot be resumed: damaged, edited, or made for another family or
+    /// network.
+    #[error("{0}")]
+    Checkpoint(String),
+    /// The output folder or a file in it could not be written.
+    #[error("{0}")]
+    Output(String),
+    /// The loss stopped being a finite number.
+    #[error("{0}")]
+    Diverged(String),
+    /// The synthesiser could not make a sample.
+    #[error("{0}")]
+    Data(String),
+}
+
 /// The paths of a training folder.
 pub struct OutDir(pub PathBuf);
 
@@ -136,6 +154,21 @@ impl OutDir {
     }
     pub fn report(&self) -> PathBuf {
         self.0.join("report.json")
+    }
+
+    /// Creates the folder and proves it writable before the first step, rather than at the first
+    /// checkpoint minutes later.
+    pub fn check_writable(&self) -> Result<(), TrainError> {
+        let cannot = |e: std::io::Error| {
+            TrainError::Output(format!(
+                "{}: cannot write the training output there: {e}",
+                self.0.display()
+            ))
+        };
+        std::fs::create_dir_all(&self.0).map_err(cannot)?;
+        let probe = self.0.join(".tagsmith-write-check");
+        std::fs::write(&probe, b"").map_err(cannot)?;
+        std::fs::remove_file(&probe).map_err(cannot)
     }
 }
 
@@ -153,7 +186,7 @@ pub fn train_keypoints(
     resume: bool,
     stop: &AtomicBool,
     on_event: &mut dyn FnMut(StageEvent<KeypointStage>),
-) -> Result<StageReport<KeypointStage>, String> {
+) -> Result<StageReport<KeypointStage>, TrainError> {
     let stage = Arc::new(KeypointStage::new(family, config.width));
     train(stage, config, out, resume, stop, on_event)
 }
@@ -167,9 +200,9 @@ pub fn train<S: TrainStage>(
     resume: bool,
     stop: &AtomicBool,
     on_event: &mut dyn FnMut(StageEvent<S>),
-) -> Result<StageReport<S>, String> {
+) -> Result<StageReport<S>, TrainError> {
     let dir = OutDir(out.to_path_buf());
-    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
+    dir.check_writable()?;
     let mut run = Run::start(stage.clone(), config, &dir, resume)?;
     on_event(Event::Started {
         family: stage.family().name().into(),
@@ -178,7 +211,9 @@ pub fn train<S: TrainStage>(
         params: run.params,
         macs: stage.macs(),
     });
-    let validation = stage.validation_set(config.validation_patches)?;
+    let validation = stage
+        .validation_set(config.validation_patches)
+        .map_err(TrainError::Data)?;
     let make: loader::MakeSample<S::Sample> = {
         let stage = stage.clone();
         Arc::new(move |seed| stage.sample(seed))
@@ -192,8 +227,8 @@ pub fn train<S: TrainStage>(
     );
     run.started = Instant::now();
     while run.step < config.steps && !stop.load(Ordering::Relaxed) {
-        let samples = loader.batch(config.batch)?;
-        run.optimise(&samples);
+        let samples = loader.batch(config.batch).map_err(TrainError::Data)?;
+        run.optimise(&samples)?;
         on_event(run.progress(&loader));
         if run.step.is_multiple_of(config.validate_every) || run.step == config.steps {
             on_event(run.validate(&validation));
@@ -233,7 +268,7 @@ impl<S: TrainStage> Run<S> {
         config: &TrainConfig,
         dir: &OutDir,
         resume: bool,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, TrainError> {
         let device = Device::flex().autodiff();
         // Seeded initial weights: a run is a function of its config (resumed runs load theirs).
         device.seed(config.seed);
@@ -243,11 +278,13 @@ impl<S: TrainStage> Run<S> {
             (0, Vec::new(), 0.0, None);
         if resume && dir.checkpoint().exists() {
             let path = dir.checkpoint();
-            let state = checkpoint::load::<S::Metrics>(&path)?;
-            net = stage.load_model(&state.model, &path.display().to_string(), &device)?;
-            optim = optim
-                .from_bytes(state.optimiser)
-                .map_err(|e| format!("{}: optimiser state: {e}", path.display()))?;
+            let state = checkpoint::load::<S::Metrics>(&path).map_err(TrainError::Checkpoint)?;
+            net = stage
+                .load_model(&state.model, &path.display().to_string(), &device)
+                .map_err(TrainError::Checkpoint)?;
+            optim = optim.from_bytes(state.optimiser).map_err(|e| {
+                TrainError::Checkpoint(format!("{}: optimiser state: {e}", path.display()))
+            })?;
             step = state.meta.step;
             history = state.meta.validation;
             earlier_wall = state.meta.wall_s;
@@ -270,14 +307,23 @@ impl<S: TrainStage> Run<S> {
         })
     }
 
-    /// One optimiser step on a batch.
-    fn optimise(&mut self, samples: &[S::Sample]) {
+    /// One optimiser step on a batch; a loss that is not finite stops the run before its weights
+    /// reach a checkpoint.
+    fn optimise(&mut self, samples: &[S::Sample]) -> Result<(), TrainError> {
         let (loss, terms) = self.stage.loss(&self.net, samples, &self.device);
+        if !S::total(&terms).is_finite() {
+            return Err(TrainError::Diverged(format!(
+                "training diverged at step {}: the loss is not a finite number; the last \
+                 checkpoint is kept (resume it with a lower --learning-rate)",
+                self.step + 1
+            )));
+        }
         let grads = GradientsParams::from_grads(loss.backward(), &self.net);
         let lr = self.config.learning_rate_at(self.step);
         self.net = self.optim.step(lr, self.net.clone(), grads);
         self.step += 1;
         self.last = terms;
+        Ok(())
     }
 
     fn progress(&self, loader: &Loader<S::Sample>) -> StageEvent<S> {
@@ -300,26 +346,39 @@ impl<S: TrainStage> Run<S> {
         }
     }
 
-    fn checkpoint(&self, dir: &OutDir) -> Result<StageEvent<S>, String> {
-        let model = self.stage.model_bytes(self.net.clone(), self.step)?;
+    fn checkpoint(&self, dir: &OutDir) -> Result<StageEvent<S>, TrainError> {
+        let model = self
+            .stage
+            .model_bytes(self.net.clone(), self.step)
+            .map_err(TrainError::Diverged)?;
         let meta = checkpoint::Meta {
             step: self.step,
             validation: self.history.clone(),
             wall_s: self.earlier_wall + self.started.elapsed().as_secs_f64(),
             config: self.config.clone(),
         };
-        checkpoint::save(&dir.checkpoint(), &model, &self.optim, &meta)?;
+        let optimiser = self
+            .optim
+            .into_bytes()
+            .map_err(|e| TrainError::Output(e.to_string()))?;
+        checkpoint::save(&dir.checkpoint(), &model, &optimiser, &meta)
+            .map_err(TrainError::Output)?;
         Ok(Event::Checkpointed { step: self.step })
     }
 
     /// Writes the final model and the report.
-    fn finish(self, dir: &OutDir, loader: &Loader<S::Sample>) -> Result<StageReport<S>, String> {
+    fn finish(
+        self,
+        dir: &OutDir,
+        loader: &Loader<S::Sample>,
+    ) -> Result<StageReport<S>, TrainError> {
         let wall = self.started.elapsed().as_secs_f64();
         let bytes = self
             .stage
-            .model_bytes(self.stage.inference(&self.net), self.step)?;
+            .model_bytes(self.stage.inference(&self.net), self.step)
+            .map_err(TrainError::Diverged)?;
         crate::io::write_atomic(&dir.model(), &bytes)
-            .map_err(|e| format!("{}: {e}", dir.model().display()))?;
+            .map_err(|e| TrainError::Output(format!("{}: {e}", dir.model().display())))?;
         let done = (self.step - self.first_step).max(1);
         let family = self.stage.family();
         let report = Report {
@@ -340,9 +399,9 @@ impl<S: TrainStage> Run<S> {
             validation: self.history,
             model_file: dir.model().display().to_string(),
         };
-        let json = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
+        let json = serde_json::to_string_pretty(&report).expect("reports serialise");
         crate::io::write_atomic(&dir.report(), json.as_bytes())
-            .map_err(|e| format!("{}: {e}", dir.report().display()))?;
+            .map_err(|e| TrainError::Output(format!("{}: {e}", dir.report().display())))?;
         Ok(report)
     }
 }

@@ -35,6 +35,8 @@ pub trait TrainStage: Send + Sync + 'static {
         samples: &[Self::Sample],
         device: &Device,
     ) -> (Tensor<1>, Self::Terms);
+    /// The total loss in `terms` (a run whose loss is not finite has diverged and stops).
+    fn total(terms: &Self::Terms) -> f64;
     /// A fixed, seeded validation set of `size` samples: the same for every run of a family, so
     /// figures compare across runs.
     fn validation_set(&self, size: usize) -> Result<Vec<Self::Sample>, String>;

@@ -172,3 +172,87 @@ fn training_resumes_from_its_checkpoint() {
         .to_string();
     assert!(err.contains("not a Tagsmith stage-2 model"), "{err}");
 }
+
+/// A validation that finds nothing has NaN keypoint errors (no keypoint to measure); the
+/// checkpoint written after it must still resume, and the report must keep the NaN.
+#[test]
+fn a_run_whose_validation_found_nothing_resumes() {
+    use super::checkpoint;
+    use super::stage2::validate::Metrics;
+    let family = builtin::get("apriltag-16h5").unwrap().unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let never = AtomicBool::new(false);
+    train(&family, &tiny(2), dir.path(), false, &never, &mut |_| {}).unwrap();
+    // The state as a validation that found nothing leaves it (what `validate::score` returns
+    // then), written the way the loop writes it.
+    let path = dir.path().join("checkpoint.bin");
+    let mut state = checkpoint::load::<Metrics>(&path).unwrap();
+    state.meta.validation[0].1 = Metrics {
+        patches: 2,
+        keypoint_rms_px: f64::NAN,
+        keypoint_median_px: f64::NAN,
+        ..Metrics::default()
+    };
+    checkpoint::save(&path, &state.model, &state.optimiser, &state.meta).unwrap();
+    let resumed = train(&family, &tiny(4), dir.path(), true, &never, &mut |_| {}).unwrap();
+    assert_eq!(resumed.resumed_from, Some(2));
+    assert!(resumed.validation[0].1.keypoint_rms_px.is_nan());
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["validation"][0][1]["keypoint_rms_px"], "NaN");
+}
+
+/// Trailing bytes or an edited step are caught by the checksum, named by the file.
+#[test]
+fn a_damaged_or_edited_checkpoint_is_refused() {
+    let family = builtin::get("apriltag-16h5").unwrap().unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let never = AtomicBool::new(false);
+    train(&family, &tiny(2), dir.path(), false, &never, &mut |_| {}).unwrap();
+    let path = dir.path().join("checkpoint.bin");
+    let good = std::fs::read(&path).unwrap();
+    let text = String::from_utf8_lossy(&good);
+    let at = text
+        .find("\"step\":2")
+        .expect("the step is in the JSON state");
+    let mut edited = good.clone();
+    edited[at + 7] = b'1';
+    let mut trailing = good.clone();
+    trailing.extend_from_slice(b"garbage");
+    for bytes in [edited, trailing, good[..good.len() / 2].to_vec()] {
+        std::fs::write(&path, &bytes).unwrap();
+        let err = train(&family, &tiny(4), dir.path(), true, &never, &mut |_| {})
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("checkpoint.bin"), "{err}");
+        assert!(err.contains("damaged"), "{err}");
+    }
+}
+
+/// A folder that cannot be written is reported before the first step.
+#[cfg(unix)]
+#[test]
+fn an_unwritable_output_folder_fails_before_training() {
+    let family = builtin::get("apriltag-16h5").unwrap().unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let blocked = dir.path().join("file-not-folder");
+    std::fs::write(&blocked, b"x").unwrap();
+    let never = AtomicBool::new(false);
+    let mut steps = 0;
+    let err = train(
+        &family,
+        &tiny(2),
+        &blocked.join("run"),
+        false,
+        &never,
+        &mut |e| {
+            if matches!(e, Event::Step { .. }) {
+                steps += 1;
+            }
+        },
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(err.contains("file-not-folder"), "{err}");
+    assert_eq!(steps, 0);
+}

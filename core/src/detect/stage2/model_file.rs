@@ -5,9 +5,9 @@
 
 use super::net::{NetConfig, Stage2Net};
 use crate::family::Family;
-use burn::module::Module;
+use burn::module::{Module, ModuleVisitor, Param};
 use burn::store::ModuleRecord;
-use burn::tensor::{Bytes, Device};
+use burn::tensor::{Bytes, Device, Tensor};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -51,6 +51,25 @@ pub enum ModelError {
          or categories changed since); retrain it"
     )]
     FamilyChanged { path: String, family: String },
+    #[error("{path}: the network's weights are not all finite numbers (training diverged)")]
+    NotFinite { path: String },
+}
+
+/// Whether every weight of the network is a finite number: weights that are not make every
+/// detection garbage, so they are neither saved nor loaded.
+pub fn weights_are_finite(net: &Stage2Net) -> bool {
+    struct Check(bool);
+    impl ModuleVisitor for Check {
+        fn visit_float<const D: usize>(&mut self, param: &Param<Tensor<D>>) {
+            if self.0 {
+                let values = param.val().into_data().convert::<f32>();
+                self.0 = values.iter::<f32>().all(f32::is_finite);
+            }
+        }
+    }
+    let mut check = Check(true);
+    net.visit(&mut check);
+    check.0
 }
 
 /// FNV-1a, 64 bit: a stable hash with no dependency (std's hasher may change between releases).
@@ -78,6 +97,13 @@ pub fn to_bytes(
     family: &Family,
     steps: u64,
 ) -> Result<Vec<u8>, String> {
+    if !weights_are_finite(&net) {
+        return Err(
+            "the network's weights are not all finite numbers (training diverged); nothing was \
+             written"
+                .into(),
+        );
+    }
     let weights = net.into_record().into_bytes().map_err(|e| e.to_string())?;
     let header = ModelHeader {
         format: 1,
@@ -163,6 +189,9 @@ pub fn from_bytes(
         .init(device)
         .try_load_record(record)
         .map_err(|e| corrupt(format!("weights: {e}")))?;
+    if !weights_are_finite(&net) {
+        return Err(ModelError::NotFinite { path: path.into() });
+    }
     Ok((net, header))
 }
 

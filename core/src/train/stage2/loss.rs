@@ -88,10 +88,15 @@ impl Batch {
 /// Loss terms of a step (already weighted), for the progress display.
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct LossTerms {
+    #[serde(with = "crate::io::json_float")]
     pub total: f32,
+    #[serde(with = "crate::io::json_float")]
     pub confidence: f32,
+    #[serde(with = "crate::io::json_float")]
     pub offset: f32,
+    #[serde(with = "crate::io::json_float")]
     pub mask: f32,
+    #[serde(with = "crate::io::json_float")]
     pub template: f32,
 }
 

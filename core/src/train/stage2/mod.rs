@@ -88,6 +88,10 @@ impl TrainStage for KeypointStage {
         losses(net.forward(batch.input.clone()), &batch)
     }
 
+    fn total(terms: &LossTerms) -> f64 {
+        terms.total as f64
+    }
+
     fn validation_set(&self, size: usize) -> Result<Vec<PatchSample>, String> {
         validate::validation_set(&self.family, &self.spec, size)
     }

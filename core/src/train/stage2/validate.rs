@@ -15,18 +15,23 @@ pub const VALIDATION_SEED: u64 = 0x7A11_DA7E;
 pub struct Metrics {
     pub patches: usize,
     /// Visible keypoints with a found keypoint sorted to them within half a cell pitch.
+    #[serde(with = "crate::io::json_float")]
     pub keypoint_recall: f64,
     /// Of those, the category read right (the read-out the decoder uses: the most likely of the
     /// categories the keypoint's slot admits).
+    #[serde(with = "crate::io::json_float")]
     pub symbol_accuracy: f64,
     /// Patches decoded to the right ID.
+    #[serde(with = "crate::io::json_float")]
     pub id_accuracy: f64,
     /// Patches decoded to a wrong ID (the rest of the misses decode to nothing).
-    #[serde(default)]
+    #[serde(default, with = "crate::io::json_float")]
     pub wrong_id_rate: f64,
     /// Root-mean-square distance of found keypoints to the truth, patch pixels.
+    #[serde(with = "crate::io::json_float")]
     pub keypoint_rms_px: f64,
     /// Median of that per-patch.
+    #[serde(with = "crate::io::json_float")]
     pub keypoint_median_px: f64,
 }
 
