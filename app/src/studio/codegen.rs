@@ -29,7 +29,8 @@ impl CodegenJob {
             let report = generate(&params, &mut |t, k| {
                 tried.store(t, Ordering::Relaxed);
                 kept.store(k as u64, Ordering::Relaxed);
-            });
+            })
+            .map_err(|e| e.to_string());
             *result.lock().expect("only this job writes the result") = Some(report);
         };
         #[cfg(not(target_arch = "wasm32"))]
