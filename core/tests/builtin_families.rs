@@ -37,7 +37,7 @@ fn there_are_fifteen_and_each_declares_its_true_minimum_distance() {
     for f in &families {
         let computed = f.codebook().min_distance(&ambiguous(f));
         assert_eq!(f.spec().codebook.min_distance, computed, "{}", f.name());
-        let warnings = tagsmith::render::readback::warnings(&f);
+        let warnings = tagsmith::render::readback::warnings(f);
         assert!(warnings.is_empty(), "{}: {warnings:?}", f.name());
     }
 }
