@@ -53,14 +53,20 @@ fn a_device_given_as_output_is_written_through_not_replaced() {
     let null = std::path::Path::new("/dev/null");
     if null.exists() {
         detect("/dev/null").ok();
-        assert!(std::fs::metadata(null).unwrap().file_type().is_char_device());
+        assert!(std::fs::metadata(null)
+            .unwrap()
+            .file_type()
+            .is_char_device());
     }
     let full = std::path::Path::new("/dev/full");
     if full.exists() {
         let run = detect("/dev/full");
         assert_eq!(run.code, 1, "{}", run.stderr);
         assert!(run.stderr.contains("/dev/full"), "{}", run.stderr);
-        assert!(std::fs::metadata(full).unwrap().file_type().is_char_device());
+        assert!(std::fs::metadata(full)
+            .unwrap()
+            .file_type()
+            .is_char_device());
     }
 }
 

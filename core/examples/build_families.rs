@@ -8,13 +8,30 @@ use tagsmith::codebook::import::{AprilTag3Table, OpenCvTable};
 use tagsmith::family::designs::*;
 use tagsmith::family::{spec::FamilySpec, to_json_string, Family};
 
-fn main() -> Result<(), String> {
+// Printed with Display: `main` returning the error would print its Debug form.
+fn main() -> std::process::ExitCode {
+    match run() {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn run() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
     let tables = PathBuf::from(args.get(1).map_or("../shared/codebooks", |s| s.as_str()));
     let out = PathBuf::from(args.get(2).map_or("families", |s| s.as_str()));
     let read = |p: &Path| std::fs::read_to_string(p).map_err(|e| format!("{}: {e}", p.display()));
-    let opencv = |file: &str| OpenCvTable::parse(&read(&tables.join(file))?);
-    let april = |file: &str| AprilTag3Table::parse(&read(&tables.join("apriltag3").join(file))?);
+    let opencv = |file: &str| -> Result<_, Box<dyn std::error::Error>> {
+        Ok(OpenCvTable::parse(&read(&tables.join(file))?)?)
+    };
+    let april = |file: &str| -> Result<_, Box<dyn std::error::Error>> {
+        Ok(AprilTag3Table::parse(&read(
+            &tables.join("apriltag3").join(file),
+        )?)?)
+    };
 
     let mut specs: Vec<FamilySpec> = vec![
         opencv_family(
@@ -73,7 +90,7 @@ fn main() -> Result<(), String> {
     specs.push(topotag_like()?);
 
     for spec in specs {
-        let family = Family::from_spec(spec.clone()).map_err(|e| e.to_string())?;
+        let family = Family::from_spec(spec.clone())?;
         let path = out.join(format!("{}.json", spec.name));
         tagsmith::io::write_atomic(&path, to_json_string(&spec).as_bytes())
             .map_err(|e| format!("{}: {e}", path.display()))?;

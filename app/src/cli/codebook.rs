@@ -121,8 +121,7 @@ impl GenerateArgs {
         let report = codebook::generate(&params, &mut |tried, kept| {
             bar.set_position(tried);
             bar.set_message(format!("{kept} codes"));
-        })
-        .bad_input()?;
+        })?;
         bar.finish_and_clear();
         let mut spec = family.spec().clone();
         spec.name = self
@@ -170,7 +169,7 @@ pub struct ExportOpencvArgs {
 impl ExportOpencvArgs {
     pub fn run(self) -> Result<()> {
         let family = load_family(&self.family)?;
-        let yaml = tagsmith::render::opencv::dictionary_yaml(&family).bad_input()?;
+        let yaml = tagsmith::render::opencv::dictionary_yaml(&family)?;
         write_output(&self.output, yaml.as_bytes())?;
         println!(
             "wrote {} ({} markers) — load with cv2.aruco.Dictionary.readDictionary(cv2.FileStorage(path, cv2.FILE_STORAGE_READ).root())",

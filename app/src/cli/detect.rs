@@ -1,7 +1,7 @@
 //! `detect` and `detect-set`: the learned stage-2 detector on images.
 
 use super::common::{load_family, write_output};
-use super::error::{bad_input, failure, Classify, Result};
+use super::error::{bad_input, failure, Classify, Concerning, Result};
 use anyhow::Context;
 use clap::Args;
 use std::path::{Path, PathBuf};
@@ -124,7 +124,7 @@ impl DetectSetArgs {
     pub fn run(self) -> Result<()> {
         use tagsmith::eval::set::{self, Group};
         use tagsmith::eval::stage2_from_truth::Stage2FromTruth;
-        let s = set::load(&self.set).bad_input()?;
+        let s = set::load(&self.set)?;
         let family = load_family(&s.family)?;
         if !(0.0..0.5).contains(&self.roi_noise) {
             return Err(bad_input!("--roi-noise must be in [0, 0.5)"));
@@ -187,8 +187,7 @@ fn load_camera(path: &Path, size: (u32, u32)) -> Result<Camera> {
         path.extension().and_then(|e| e.to_str()),
         Some("yml" | "yaml")
     ) {
-        Camera::from_opencv_yaml(&text, Some(size))
-            .map_err(|e| bad_input!("{}: {e}", path.display()))?
+        Camera::from_opencv_yaml(&text, Some(size)).concerning(path.display())?
     } else {
         serde_json::from_str::<Camera>(&text).map_err(|e| bad_input!("{}: {e}", path.display()))?
     };

@@ -2,13 +2,19 @@
 //!
 //! Core's typed errors convert with `?` (`From`), each classified once here; core's plain-message
 //! errors and the CLI's own checks name their kind at the call site with [`Classify`] or
-//! [`bad_input!`] / [`failure!`].
+//! [`bad_input!`] / [`failure!`]. [`Concerning`] puts the option or file an error is about in
+//! front of a typed error without changing its kind.
 
 use std::fmt;
+use tagsmith::codebook::GenerateError;
 use tagsmith::detect::stage2::model_file::ModelError;
-use tagsmith::geometry::GeometryError;
+use tagsmith::eval::EvalError;
+use tagsmith::geometry::{CalibrationError, GeometryError};
 use tagsmith::image::{ImageError, ImageErrorKind};
+use tagsmith::render::opencv::OpenCvError;
+use tagsmith::render::sheet::SheetError;
 use tagsmith::render::RenderError;
+use tagsmith::synth::SynthError;
 use tagsmith::FamilyError;
 
 /// A command failure: bad input (exit 2) or a failure to produce output (exit 1).
@@ -32,6 +38,14 @@ impl CliError {
 
     pub(crate) fn failure(e: impl fmt::Display) -> Self {
         CliError::Failed(flatten(e))
+    }
+
+    /// The same kind of error, its message led by `what` (`--ids: …`, `camera.yml: …`).
+    fn concerning(self, what: impl fmt::Display) -> Self {
+        match self {
+            CliError::BadInput(e) => CliError::bad_input(format_args!("{what}: {e:#}")),
+            CliError::Failed(e) => CliError::failure(format_args!("{what}: {e:#}")),
+        }
     }
 }
 
@@ -109,6 +123,73 @@ impl From<GeometryError> for CliError {
     }
 }
 
+/// Generation parameters come from the command line and the user's family.
+impl From<GenerateError> for CliError {
+    fn from(e: GenerateError) -> Self {
+        CliError::bad_input(e)
+    }
+}
+
+/// The family given is not one OpenCV can read.
+impl From<OpenCvError> for CliError {
+    fn from(e: OpenCvError) -> Self {
+        CliError::bad_input(e)
+    }
+}
+
+/// `--page` and `--ids` as typed.
+impl From<SheetError> for CliError {
+    fn from(e: SheetError) -> Self {
+        CliError::bad_input(e)
+    }
+}
+
+/// The user's calibration file.
+impl From<CalibrationError> for CliError {
+    fn from(e: CalibrationError) -> Self {
+        CliError::bad_input(e)
+    }
+}
+
+/// A size or field of view that cannot be drawn is the request's; rendering keeps its own kinds.
+impl From<SynthError> for CliError {
+    fn from(e: SynthError) -> Self {
+        match e {
+            SynthError::Render(e) => e.into(),
+            SynthError::ImageSize { .. }
+            | SynthError::Geometry(_)
+            | SynthError::DegeneratePlacement { .. } => CliError::bad_input(e),
+        }
+    }
+}
+
+/// A set or detections file that cannot be read or does not fit is the user's; a set that cannot
+/// be written is a failure.
+impl From<EvalError> for CliError {
+    fn from(e: EvalError) -> Self {
+        match e {
+            EvalError::Synth(e) => e.into(),
+            EvalError::Write { .. } | EvalError::Encode { .. } => CliError::failure(e),
+            EvalError::BadSide { .. }
+            | EvalError::Read { .. }
+            | EvalError::Json { .. }
+            | EvalError::UnknownImage { .. } => CliError::bad_input(e),
+        }
+    }
+}
+
+/// Puts what a typed error is about in front of its message; its kind stays the one its `From`
+/// gives.
+pub(crate) trait Concerning<T> {
+    fn concerning(self, what: impl fmt::Display) -> Result<T>;
+}
+
+impl<T, E: Into<CliError>> Concerning<T> for std::result::Result<T, E> {
+    fn concerning(self, what: impl fmt::Display) -> Result<T> {
+        self.map_err(|e| e.into().concerning(what))
+    }
+}
+
 /// Names the kind of an error at the call site, for errors whose type does not tell it (core's
 /// plain messages, I/O wrapped with context).
 pub(crate) trait Classify<T> {
@@ -169,6 +250,44 @@ mod tests {
         assert_eq!(
             CliError::from(FamilyError::single("layout", "wrong")).exit_code(),
             2
+        );
+    }
+
+    #[test]
+    fn new_core_errors_are_classified_by_variant() {
+        let write = EvalError::Write {
+            path: "set/images/000000.png".into(),
+            source: std::io::Error::other("disk full"),
+        };
+        assert_eq!(CliError::from(write).exit_code(), 1);
+        let unknown = EvalError::UnknownImage {
+            file: "x.png".into(),
+        };
+        assert_eq!(CliError::from(unknown).exit_code(), 2);
+        let encode = SynthError::Render(RenderError::Encode("no memory".into()));
+        assert_eq!(CliError::from(EvalError::Synth(encode)).exit_code(), 1);
+        let size = SynthError::ImageSize {
+            width: 8,
+            height: 8,
+        };
+        assert_eq!(CliError::from(size).exit_code(), 2);
+        assert_eq!(CliError::from(SheetError::NoIds).exit_code(), 2);
+    }
+
+    #[test]
+    fn concerning_leads_the_message_and_keeps_the_kind() {
+        let r: std::result::Result<(), SheetError> = Err(SheetError::NoIds);
+        let e = r.concerning("--ids").unwrap_err();
+        assert_eq!(e.exit_code(), 2);
+        assert_eq!(format!("{e:#}"), "--ids: no IDs given");
+        let r: std::result::Result<(), EvalError> = Err(EvalError::Write {
+            path: "s/set.json".into(),
+            source: std::io::Error::other("disk full"),
+        });
+        let e = r.concerning("eval").unwrap_err();
+        assert_eq!(
+            (e.exit_code(), e.to_string()),
+            (1, "eval: s/set.json: disk full".into())
         );
     }
 

@@ -1,7 +1,7 @@
 //! `eval generate`, `eval score` and `eval oracle`: the evaluation harness.
 
 use super::common::{load_family, print_quietly, write_output};
-use super::error::{bad_input, Classify, Result};
+use super::error::{bad_input, Classify, Concerning, Result};
 use anyhow::Context;
 use clap::{Args, Subcommand};
 use std::path::PathBuf;
@@ -54,7 +54,7 @@ impl GenerateSetArgs {
             ..set::SetParams::default()
         };
         let started = std::time::Instant::now();
-        let s = set::generate(&family, &params, &self.output).bad_input()?;
+        let s = set::generate(&family, &params, &self.output)?;
         println!(
             "wrote {} images of {} ({} mm) to {} in {:.1} s",
             s.images.len(),
@@ -81,15 +81,14 @@ pub struct ScoreArgs {
 impl ScoreArgs {
     pub fn run(self) -> Result<()> {
         let (dir, detections) = (&self.set, &self.detections);
-        let s = set::load(dir).bad_input()?;
+        let s = set::load(dir)?;
         let text = std::fs::read_to_string(detections)
             .with_context(|| format!("cannot read {}", detections.display()))
             .bad_input()?;
         let file: DetectionsFile =
             serde_json::from_str(&text).map_err(|e| bad_input!("{}: {e}", detections.display()))?;
         let family = load_family(&s.family).ok();
-        let report = score::score(&s, family.as_ref(), &file)
-            .map_err(|e| bad_input!("{}: {e}", detections.display()))?;
+        let report = score::score(&s, family.as_ref(), &file).concerning(detections.display())?;
         let slug: String = file
             .detector
             .chars()
@@ -127,7 +126,7 @@ pub struct OracleArgs {
 
 impl OracleArgs {
     pub fn run(self) -> Result<()> {
-        let s = set::load(&self.set).bad_input()?;
+        let s = set::load(&self.set)?;
         let file = s.oracle();
         write_output(
             &self.output,

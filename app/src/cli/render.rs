@@ -1,7 +1,7 @@
 //! `render` and `sheet`: markers to SVG, PNG and printable pages.
 
 use super::common::{extension, load_family, write_output};
-use super::error::{bad_input, Result};
+use super::error::{bad_input, Concerning, Result};
 use clap::Args;
 use std::path::PathBuf;
 use tagsmith::render::sheet::{layout_sheet, parse_ids, PageSize, SheetParams};
@@ -106,8 +106,8 @@ pub struct SheetArgs {
 impl SheetArgs {
     pub fn run(self) -> Result<()> {
         let family = load_family(&self.family)?;
-        let ids = parse_ids(&self.ids).map_err(|e| bad_input!("--ids: {e}"))?;
-        let mut page = PageSize::parse(&self.page).map_err(|e| bad_input!("--page: {e}"))?;
+        let ids = parse_ids(&self.ids).concerning("--ids")?;
+        let mut page = PageSize::parse(&self.page).concerning("--page")?;
         if self.landscape {
             page = page.landscape();
         }

@@ -71,8 +71,7 @@ impl SynthArgs {
         let kept: Vec<_> = (0..self.count)
             .into_par_iter()
             .map(|i| -> Result<_> {
-                let sample = synth::synthesize(&family, &config, synth::image_seed(self.seed, i))
-                    .bad_input()?;
+                let sample = synth::synthesize(&family, &config, synth::image_seed(self.seed, i))?;
                 let stem = format!("{i:06}");
                 let png = tagsmith::image::encode_png(&sample.image).failure()?;
                 write_output(&self.output.join(format!("{stem}.png")), &png)?;

@@ -25,6 +25,7 @@ impl CodegenJob {
                     format!("{kept} codes, {tried} candidates"),
                 );
             })
+            .map_err(|e| e.to_string())
         });
         Self { job, revision }
     }

@@ -79,6 +79,20 @@ pub struct GenerateReport {
     pub stop: &'static str,
 }
 
+/// Generation parameters that cannot give a codebook; each names the value that is wrong.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum GenerateError {
+    #[error("q = {q} symbols: must be 2 to 10")]
+    Alphabet { q: usize },
+    #[error("code length {len} must be 1 to 4096")]
+    Length { len: usize },
+    #[error("a minimum distance of {min_distance} is impossible with {len} symbols")]
+    Distance { min_distance: u32, len: usize },
+    /// `rotation` counts the ambiguous rotations first, then the symmetry rotations.
+    #[error("rotation {rotation} is not a permutation of the code positions")]
+    NotAPermutation { rotation: usize },
+}
+
 /// Progress: (candidates tried, codes kept).
 pub type ProgressFn<'a> = &'a mut dyn FnMut(u64, usize);
 
@@ -86,7 +100,7 @@ pub type ProgressFn<'a> = &'a mut dyn FnMut(u64, usize);
 pub fn generate(
     params: &GenerateParams,
     progress: ProgressFn<'_>,
-) -> Result<GenerateReport, String> {
+) -> Result<GenerateReport, GenerateError> {
     check(params)?;
     let start = Instant::now();
     let packing = Packing::new(params.q, params.len);
@@ -184,27 +198,27 @@ pub fn generate(
     })
 }
 
-fn check(p: &GenerateParams) -> Result<(), String> {
+fn check(p: &GenerateParams) -> Result<(), GenerateError> {
     if !(2..=10).contains(&p.q) {
-        return Err(format!("q = {} symbols: must be 2 to 10", p.q));
+        return Err(GenerateError::Alphabet { q: p.q });
     }
     if p.len == 0 || p.len > 4096 {
-        return Err(format!("code length {} must be 1 to 4096", p.len));
+        return Err(GenerateError::Length { len: p.len });
     }
     if p.min_distance as usize > p.len {
-        return Err(format!(
-            "a minimum distance of {} is impossible with {} symbols",
-            p.min_distance, p.len
-        ));
+        return Err(GenerateError::Distance {
+            min_distance: p.min_distance,
+            len: p.len,
+        });
     }
-    for r in p.rotations.iter().chain(&p.symmetry_rotations) {
+    for (rotation, r) in p.rotations.iter().chain(&p.symmetry_rotations).enumerate() {
         let mut seen = vec![false; p.len];
         if r.len() != p.len
             || !r
                 .iter()
                 .all(|&i| i < p.len && !std::mem::replace(&mut seen[i], true))
         {
-            return Err("a rotation is not a permutation of the code positions".into());
+            return Err(GenerateError::NotAPermutation { rotation });
         }
     }
     Ok(())
@@ -441,7 +455,20 @@ mod tests {
 
     #[test]
     fn impossible_requests_are_errors() {
-        assert!(generate(&GenerateParams::new(2, 8, 9), &mut |_, _| {}).is_err());
-        assert!(generate(&GenerateParams::new(1, 8, 1), &mut |_, _| {}).is_err());
+        let run = |p: &GenerateParams| generate(p, &mut |_, _| {}).unwrap_err();
+        assert_eq!(
+            run(&GenerateParams::new(2, 8, 9)),
+            GenerateError::Distance {
+                min_distance: 9,
+                len: 8
+            }
+        );
+        assert_eq!(
+            run(&GenerateParams::new(1, 8, 1)).to_string(),
+            "q = 1 symbols: must be 2 to 10"
+        );
+        let mut params = GenerateParams::new(2, 4, 1);
+        params.symmetry_rotations = vec![vec![0, 1, 2, 3], vec![0, 0, 1, 2]];
+        assert_eq!(run(&params), GenerateError::NotAPermutation { rotation: 1 });
     }
 }

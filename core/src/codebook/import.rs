@@ -10,6 +10,40 @@
 
 use serde::Deserialize;
 
+/// A code table that cannot be imported; each names the table, bit or code that failed.
+#[derive(Debug, thiserror::Error)]
+pub enum ImportError {
+    #[error("not a JSON table: {0}")]
+    NotJson(serde_json::Error),
+    /// JSON, but not the fields of the table format it was read as.
+    #[error("{0}")]
+    Fields(serde_json::Error),
+    #[error("neither an OpenCV dictionary (bits_per_side) nor an AprilTag 3 table (bit_x)")]
+    UnknownFormat,
+    #[error("{table}: bit_x/bit_y must list {nbits} cells")]
+    BitCells { table: String, nbits: usize },
+    #[error("{table}: implausible widths")]
+    Widths { table: String },
+    #[error("{table}: bit {bit} lies outside the {width}×{width} tag")]
+    BitOutside {
+        table: String,
+        bit: usize,
+        width: i64,
+    },
+    #[error("{table}: two bits share a cell")]
+    SharedCell { table: String },
+    #[error("{code:?} is not hexadecimal")]
+    NotHex { code: String },
+    #[error("{code:?} has more than {len} bits")]
+    TooLong { code: String, len: usize },
+    #[error("table {table} has {bits}-bit codes but this design has {code_len} code cells")]
+    CodeLength {
+        table: String,
+        bits: usize,
+        code_len: usize,
+    },
+}
+
 /// A table dumped from OpenCV's predefined `cv2.aruco` dictionaries.
 #[derive(Debug, Clone, Deserialize)]
 pub struct OpenCvTable {
@@ -25,12 +59,12 @@ pub struct OpenCvTable {
 }
 
 impl OpenCvTable {
-    pub fn parse(json: &str) -> Result<Self, String> {
-        serde_json::from_str(json).map_err(|e| e.to_string())
+    pub fn parse(json: &str) -> Result<Self, ImportError> {
+        serde_json::from_str(json).map_err(ImportError::Fields)
     }
 
     /// Codes as bits (row-major over the data cells, 1 = white).
-    pub fn bits(&self) -> Result<Vec<Vec<u8>>, String> {
+    pub fn bits(&self) -> Result<Vec<Vec<u8>>, ImportError> {
         let len = self.bits_per_side * self.bits_per_side;
         self.codes.iter().map(|c| hex_bits(c, len)).collect()
     }
@@ -64,22 +98,22 @@ pub struct GridTable {
 }
 
 impl AprilTag3Table {
-    pub fn parse(json: &str) -> Result<Self, String> {
-        let t: Self = serde_json::from_str(json).map_err(|e| e.to_string())?;
+    pub fn parse(json: &str) -> Result<Self, ImportError> {
+        let t: Self = serde_json::from_str(json).map_err(ImportError::Fields)?;
         if t.bit_x.len() != t.nbits || t.bit_y.len() != t.nbits {
-            return Err(format!(
-                "{}: bit_x/bit_y must list {} cells",
-                t.name, t.nbits
-            ));
+            return Err(ImportError::BitCells {
+                table: t.name,
+                nbits: t.nbits,
+            });
         }
         if !(1..=32).contains(&t.total_width) || t.width_at_border > t.total_width {
-            return Err(format!("{}: implausible widths", t.name));
+            return Err(ImportError::Widths { table: t.name });
         }
         Ok(t)
     }
 
     /// Converts to Tagsmith's convention: the AprilTag layout turned 180°, codes read row-major.
-    pub fn to_grid(&self) -> Result<GridTable, String> {
+    pub fn to_grid(&self) -> Result<GridTable, ImportError> {
         let w = self.total_width;
         let start = (w - self.width_at_border) / 2;
         let mut grid = vec![vec![b'-'; w as usize]; w as usize];
@@ -111,10 +145,11 @@ impl AprilTag3Table {
                     self.bit_y[i] as i32 as i64 + start,
                 );
                 if !(0..w).contains(&x) || !(0..w).contains(&y) {
-                    return Err(format!(
-                        "{}: bit {i} lies outside the {w}×{w} tag",
-                        self.name
-                    ));
+                    return Err(ImportError::BitOutside {
+                        table: self.name.clone(),
+                        bit: i,
+                        width: w,
+                    });
                 }
                 // Half turn into OpenCV's orientation.
                 Ok(((w - 1 - x) as usize, (w - 1 - y) as usize))
@@ -128,7 +163,9 @@ impl AprilTag3Table {
         order.sort_by_key(|&(x, y)| (y, x));
         order.dedup();
         if order.len() != self.nbits {
-            return Err(format!("{}: two bits share a cell", self.name));
+            return Err(ImportError::SharedCell {
+                table: self.name.clone(),
+            });
         }
         let position =
             |cell: (usize, usize)| order.binary_search_by_key(&(cell.1, cell.0), |&(x, y)| (y, x));
@@ -143,7 +180,7 @@ impl AprilTag3Table {
                 }
                 Ok(out)
             })
-            .collect::<Result<_, String>>()?;
+            .collect::<Result<_, ImportError>>()?;
         Ok(GridTable {
             cells: grid
                 .into_iter()
@@ -169,9 +206,8 @@ pub struct ImportedTable {
 /// codes fit a design with `code_len` binary code cells. The codes stay in Tagsmith's row-major
 /// order, so they are only meaningful when the design's data cells sit where the table's do
 /// (a square block of data cells, for OpenCV tables).
-pub fn import_table(json: &str, code_len: usize) -> Result<ImportedTable, String> {
-    let value: serde_json::Value =
-        serde_json::from_str(json).map_err(|e| format!("not a JSON table: {e}"))?;
+pub fn import_table(json: &str, code_len: usize) -> Result<ImportedTable, ImportError> {
+    let value: serde_json::Value = serde_json::from_str(json).map_err(ImportError::NotJson)?;
     let table = if value.get("bits_per_side").is_some() {
         let t = OpenCvTable::parse(json)?;
         ImportedTable {
@@ -192,26 +228,25 @@ pub fn import_table(json: &str, code_len: usize) -> Result<ImportedTable, String
             name: t.name,
         }
     } else {
-        return Err(
-            "neither an OpenCV dictionary (bits_per_side) nor an AprilTag 3 table (bit_x)".into(),
-        );
+        return Err(ImportError::UnknownFormat);
     };
-    let len = table.codes.first().map_or(0, Vec::len);
-    if len != code_len {
-        return Err(format!(
-            "table {} has {len}-bit codes but this design has {code_len} code cells",
-            table.name
-        ));
+    let bits = table.codes.first().map_or(0, Vec::len);
+    if bits != code_len {
+        return Err(ImportError::CodeLength {
+            table: table.name,
+            bits,
+            code_len,
+        });
     }
     Ok(table)
 }
 
-fn hex_bits(text: &str, len: usize) -> Result<Vec<u8>, String> {
+fn hex_bits(text: &str, len: usize) -> Result<Vec<u8>, ImportError> {
     let mut bits = Vec::with_capacity(text.len() * 4);
     for c in text.chars() {
         let v = c
             .to_digit(16)
-            .ok_or_else(|| format!("{text:?} is not hexadecimal"))?;
+            .ok_or_else(|| ImportError::NotHex { code: text.into() })?;
         bits.extend((0..4).rev().map(|b| ((v >> b) & 1) as u8));
     }
     if bits.len() < len {
@@ -221,7 +256,10 @@ fn hex_bits(text: &str, len: usize) -> Result<Vec<u8>, String> {
     }
     let extra = bits.len() - len;
     if bits[..extra].contains(&1) {
-        return Err(format!("{text:?} has more than {len} bits"));
+        return Err(ImportError::TooLong {
+            code: text.into(),
+            len,
+        });
     }
     Ok(bits[extra..].to_vec())
 }
@@ -252,11 +290,27 @@ mod tests {
     fn a_table_that_does_not_fit_the_design_is_refused_by_name() {
         let e = import_table(&table("4x4_50.json"), 36).unwrap_err();
         assert!(
-            e.contains("16-bit codes") && e.contains("36 code cells"),
+            matches!(
+                &e,
+                ImportError::CodeLength {
+                    bits: 16,
+                    code_len: 36,
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        assert!(
+            e.to_string().contains("16-bit codes") && e.to_string().contains("36 code cells"),
             "{e}"
         );
         let e = import_table("{\"codes\": []}", 36).unwrap_err();
-        assert!(e.contains("neither"), "{e}");
-        assert!(import_table("not json", 36).is_err());
+        assert!(e.to_string().contains("neither"), "{e}");
+        assert!(matches!(
+            import_table("not json", 36),
+            Err(ImportError::NotJson(_))
+        ));
+        let e = import_table(r#"{"name": "t", "bits_per_side": 2, "codes": ["1g"]}"#, 4);
+        assert!(matches!(e, Err(ImportError::NotHex { code }) if code == "1g"));
     }
 }

@@ -9,7 +9,8 @@ pub mod packed;
 pub mod spec;
 
 pub use decode::CodeMatch;
-pub use generate::{generate, GenerateParams, GenerateReport, Order};
+pub use generate::{generate, GenerateError, GenerateParams, GenerateReport, Order};
+pub use import::ImportError;
 pub use spec::{CodeEncoding, CodebookSpec};
 
 use crate::problem::Problem;

@@ -18,3 +18,37 @@ pub mod score;
 pub mod set;
 #[cfg(feature = "learn")]
 pub mod stage2_from_truth;
+
+use std::path::PathBuf;
+
+/// A benchmark set that cannot be written, read or scored; each names the file or value that
+/// failed. The messages carry their cause, so callers print them as they are.
+#[derive(Debug, thiserror::Error)]
+pub enum EvalError {
+    #[error("marker side {side_m} m must be in (0, 1]")]
+    BadSide { side_m: f64 },
+    #[error("{path}: {source}")]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}: {source}")]
+    Json {
+        path: PathBuf,
+        source: serde_json::Error,
+    },
+    #[error("{path}: {source}")]
+    Write {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}: {source}")]
+    Encode {
+        path: PathBuf,
+        source: ::image::ImageError,
+    },
+    #[error(transparent)]
+    Synth(#[from] crate::synth::SynthError),
+    #[error("detections for {file:?}, which is not an image of this set")]
+    UnknownImage { file: String },
+}

@@ -4,6 +4,7 @@
 //! four corners through the set's camera (the same PnP for every detector).
 
 use super::set::{BenchmarkSet, Group};
+use super::EvalError;
 use crate::detect::{Detection, DetectionsFile};
 use crate::family::Family;
 use crate::geometry::bounding_box;
@@ -226,7 +227,7 @@ pub fn score(
     set: &BenchmarkSet,
     family: Option<&Family>,
     detections: &DetectionsFile,
-) -> Result<Report, String> {
+) -> Result<Report, EvalError> {
     let by_file: HashMap<&str, &crate::detect::ImageDetections> = detections
         .images
         .iter()
@@ -237,10 +238,9 @@ pub fn score(
         .iter()
         .find(|i| !set.images.iter().any(|s| s.file == i.file))
     {
-        return Err(format!(
-            "detections for {:?}, which is not an image of this set",
-            unknown.file
-        ));
+        return Err(EvalError::UnknownImage {
+            file: unknown.file.clone(),
+        });
     }
     let items: Vec<(Group, Outcome)> = set
         .images

@@ -4,6 +4,7 @@
 //! Gaussian noise sweep (σ 0…300) and a motion-blur sweep (kernel 0…15, 10 directions). Written to
 //! disk once, seeded, so every detector sees the same images.
 
+use super::EvalError;
 use crate::detect::{Detection, DetectionsFile, Detector, ImageDetections};
 use crate::family::Family;
 use crate::geometry::Camera;
@@ -169,11 +170,21 @@ fn plan(p: &SetParams) -> Vec<(Group, SynthConfig, u64)> {
 }
 
 /// Renders the set into `dir/images/` and writes `dir/set.json` (the manifest with the truth).
-pub fn generate(family: &Family, params: &SetParams, dir: &Path) -> Result<BenchmarkSet, String> {
+pub fn generate(
+    family: &Family,
+    params: &SetParams,
+    dir: &Path,
+) -> Result<BenchmarkSet, EvalError> {
     if !(params.side_m.is_finite() && params.side_m > 0.0 && params.side_m <= 1.0) {
-        return Err(format!("marker side {} m must be in (0, 1]", params.side_m));
+        return Err(EvalError::BadSide {
+            side_m: params.side_m,
+        });
     }
-    std::fs::create_dir_all(dir.join("images")).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let images_dir = dir.join("images");
+    std::fs::create_dir_all(&images_dir).map_err(|source| EvalError::Write {
+        path: images_dir,
+        source,
+    })?;
     let plan = plan(params);
     let images = plan
         .par_iter()
@@ -181,16 +192,22 @@ pub fn generate(family: &Family, params: &SetParams, dir: &Path) -> Result<Bench
         .map(|(i, (group, config, seed))| {
             let sample = synthesize(family, config, *seed)?;
             let file = format!("images/{i:06}.png");
-            let png = crate::image::encode_png(&sample.image).map_err(|e| e.to_string())?;
-            crate::io::write_atomic(&dir.join(&file), &png).map_err(|e| format!("{file}: {e}"))?;
+            let path = dir.join(&file);
+            let png = match crate::image::encode_png(&sample.image) {
+                Ok(png) => png,
+                Err(source) => return Err(EvalError::Encode { path, source }),
+            };
+            crate::io::write_atomic(&path, &png)
+                .map_err(|source| EvalError::Write { path, source })?;
             Ok(BenchImage {
                 file,
                 group: *group,
                 truth: sample.truth,
             })
         })
-        .collect::<Result<Vec<_>, String>>()?;
-    let camera = Camera::from_diagonal_fov(1280, 960, 98.0).map_err(|e| e.to_string())?;
+        .collect::<Result<Vec<_>, EvalError>>()?;
+    let camera =
+        Camera::from_diagonal_fov(1280, 960, 98.0).expect("the protocol's camera is valid");
     let set = BenchmarkSet {
         family: family.name().to_string(),
         side_m: params.side_m,
@@ -198,16 +215,20 @@ pub fn generate(family: &Family, params: &SetParams, dir: &Path) -> Result<Bench
         seed: params.seed,
         images,
     };
-    let json = serde_json::to_string(&set).map_err(|e| e.to_string())?;
-    crate::io::write_atomic(&dir.join("set.json"), json.as_bytes())
-        .map_err(|e| format!("set.json: {e}"))?;
+    let json = serde_json::to_string(&set).expect("a benchmark set serialises");
+    let path = dir.join("set.json");
+    crate::io::write_atomic(&path, json.as_bytes())
+        .map_err(|source| EvalError::Write { path, source })?;
     Ok(set)
 }
 
-pub fn load(dir: &Path) -> Result<BenchmarkSet, String> {
+pub fn load(dir: &Path) -> Result<BenchmarkSet, EvalError> {
     let path = dir.join("set.json");
-    let text = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
-    serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
+    let text = match std::fs::read_to_string(&path) {
+        Ok(text) => text,
+        Err(source) => return Err(EvalError::Read { path, source }),
+    };
+    serde_json::from_str(&text).map_err(|source| EvalError::Json { path, source })
 }
 
 impl BenchImage {

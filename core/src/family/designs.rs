@@ -2,10 +2,22 @@
 //! `families/*.json`; the studio uses them as starting points for new designs.
 
 use super::spec::*;
-use crate::codebook::import::{AprilTag3Table, OpenCvTable};
-use crate::codebook::{generate, Codebook};
+use crate::codebook::import::{AprilTag3Table, ImportError, OpenCvTable};
+use crate::codebook::{generate, Codebook, GenerateError};
 use crate::family::{Family, FamilyError};
 use std::collections::BTreeMap;
+
+/// A built-in design that cannot be built: its table, its codebook generation or the family it
+/// makes.
+#[derive(Debug, thiserror::Error)]
+pub enum DesignError {
+    #[error(transparent)]
+    Import(#[from] ImportError),
+    #[error(transparent)]
+    Generate(#[from] GenerateError),
+    #[error(transparent)]
+    Family(#[from] FamilyError),
+}
 
 const BLACK: &str = "#000000";
 const WHITE: &str = "#ffffff";
@@ -124,7 +136,11 @@ fn table_codebook(codes: &[Vec<u8>], min_distance: Option<u32>, source: &str) ->
 }
 
 /// A family from an OpenCV dictionary dump (ArUco or OpenCV's AprilTag tables).
-pub fn opencv_family(name: &str, title: &str, table: &OpenCvTable) -> Result<FamilySpec, String> {
+pub fn opencv_family(
+    name: &str,
+    title: &str,
+    table: &OpenCvTable,
+) -> Result<FamilySpec, DesignError> {
     let g = table.bits_per_side;
     let bits = table.bits()?;
     let source = format!(
@@ -156,7 +172,7 @@ pub fn apriltag3_family(
     name: &str,
     title: &str,
     table: &AprilTag3Table,
-) -> Result<FamilySpec, String> {
+) -> Result<FamilySpec, DesignError> {
     let grid = table.to_grid()?;
     let (first, side) = grid.border_square;
     let source = format!(
@@ -187,7 +203,7 @@ pub fn shaped_36h11(
     table: &OpenCvTable,
     zero: (&str, Vec<Primitive>),
     one: (&str, Vec<Primitive>),
-) -> Result<FamilySpec, String> {
+) -> Result<FamilySpec, DesignError> {
     let mut spec = opencv_family(name, title, table)?;
     spec.description = format!(
         "AprilTag 36h11 codes, bit 0 drawn as {} and bit 1 as {} on a light background; the black \
@@ -249,8 +265,8 @@ pub fn fill_codebook(
     max_codes: usize,
     seed: u64,
     start_with_zero: bool,
-) -> Result<(), String> {
-    let family = Family::from_spec(spec.clone()).map_err(|e: FamilyError| e.to_string())?;
+) -> Result<(), DesignError> {
+    let family = Family::from_spec(spec.clone())?;
     let mut params = family.generate_params(min_distance);
     params.max_codes = max_codes;
     params.seed = seed;
@@ -273,7 +289,7 @@ fn provisional_codebook(q: usize, len: usize) -> CodebookSpec {
 
 /// Four cell shapes as symbols 0–3 and a distinct orientation corner, so codes need no rotational
 /// asymmetry (the all-zero code is ID 0).
-pub fn quaternary_6x6() -> Result<FamilySpec, String> {
+pub fn quaternary_6x6() -> Result<FamilySpec, DesignError> {
     let mut cells = framed_cells(8, 'b');
     cells[0].replace_range(0..1, "o");
     let categories = vec![
@@ -350,7 +366,7 @@ fn runetag_layout() -> Layout {
 }
 
 /// RuneTag-like rings: 43 slots × 3 rings, dot = 1, no dot = 0, every slot a keypoint.
-pub fn runetag() -> Result<FamilySpec, String> {
+pub fn runetag() -> Result<FamilySpec, DesignError> {
     let mut spec = FamilySpec {
         format: FORMAT_VERSION,
         name: "runetag".into(),
@@ -382,7 +398,7 @@ pub fn runetag() -> Result<FamilySpec, String> {
 
 /// RuneTag plus four orientation dots at the corners of the ROI square; the bottom-right one is a
 /// ring, which fixes the orientation.
-pub fn runetag_plus(runetag: &FamilySpec) -> Result<FamilySpec, String> {
+pub fn runetag_plus(runetag: &FamilySpec) -> Result<FamilySpec, DesignError> {
     let mut spec = runetag.clone();
     spec.name = "runetag-plus".into();
     spec.title = "RuneTag+ (rings + orientation dots)".into();
@@ -435,7 +451,7 @@ pub fn runetag_plus(runetag: &FamilySpec) -> Result<FamilySpec, String> {
     })
     .collect();
     // No rotation maps the corner dots onto themselves, so the distance is over the codes alone.
-    let family = Family::from_spec(spec.clone()).map_err(|e| e.to_string())?;
+    let family = Family::from_spec(spec.clone())?;
     let d = family.codebook().min_distance(&[]);
     spec.codebook.min_distance = d;
     spec.codebook.source = format!("{} Same codes as runetag.", runetag.codebook.source);
@@ -444,7 +460,7 @@ pub fn runetag_plus(runetag: &FamilySpec) -> Result<FamilySpec, String> {
 
 /// TopoTag-like: a black 9×9 square whose 16 vertex cells carry a white disc (0) or a white ring
 /// (1); the other 65 cells are non-coding keypoints.
-pub fn topotag_like() -> Result<FamilySpec, String> {
+pub fn topotag_like() -> Result<FamilySpec, DesignError> {
     let cells: Vec<String> = (0..9)
         .map(|r| {
             (0..9)

@@ -159,7 +159,7 @@ fn colour(field: &str, v: &Option<String>) -> Result<Option<Rgb>, FieldError> {
     v.as_deref()
         .map(Rgb::parse)
         .transpose()
-        .map_err(|m| (format!(".{field}"), m))
+        .map_err(|e| (format!(".{field}"), e.to_string()))
 }
 
 fn parse_primitive(p: &Primitive) -> Result<PatternItem, FieldError> {

@@ -33,7 +33,7 @@ pub(super) fn build(spec: FamilySpec) -> Result<Family, FamilyError> {
     }
     check_name(&spec.name, &mut problems);
     let background = Rgb::parse(&spec.background)
-        .map_err(|m| problems.push(Problem::new("background", m)))
+        .map_err(|e| problems.push(Problem::new("background", e.to_string())))
         .ok();
     let categories = check_categories(&spec, &mut problems);
     let symbol_categories = symbol_categories(&spec, &mut problems);

@@ -5,6 +5,30 @@
 use super::GeometryError;
 use serde::{Deserialize, Serialize};
 
+/// An OpenCV calibration file that does not give a camera; each names the key or value that
+/// failed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CalibrationError {
+    #[error("no {key} in the file")]
+    MissingKey { key: &'static str },
+    #[error("{key} has no data: [ ... ]")]
+    NoData { key: &'static str },
+    #[error("{key}: unterminated data")]
+    Unterminated { key: &'static str },
+    #[error("{key}: {value:?} is not a number")]
+    NotANumber { key: &'static str, value: String },
+    #[error("camera_matrix has {values} values, expected 9")]
+    MatrixSize { values: usize },
+    #[error(
+        "distortion_coefficients has {terms} terms; only OpenCV's first five (k1, k2, p1, p2, k3) are modelled"
+    )]
+    DistortionTerms { terms: usize },
+    #[error("the file has no image_width/image_height; give the image size")]
+    NoImageSize,
+    #[error(transparent)]
+    Invalid(#[from] GeometryError),
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Camera {
     pub width: u32,
@@ -46,17 +70,17 @@ impl Camera {
     /// Reads an OpenCV calibration file (`cv::FileStorage` YAML with `camera_matrix` and
     /// `distortion_coefficients`, as written by OpenCV's calibration tools). The image size comes
     /// from `image_width`/`image_height`, or from `size` when the file has none.
-    pub fn from_opencv_yaml(text: &str, size: Option<(u32, u32)>) -> Result<Self, String> {
+    pub fn from_opencv_yaml(
+        text: &str,
+        size: Option<(u32, u32)>,
+    ) -> Result<Self, CalibrationError> {
         let k = opencv_matrix(text, "camera_matrix")?;
         if k.len() != 9 {
-            return Err(format!("camera_matrix has {} values, expected 9", k.len()));
+            return Err(CalibrationError::MatrixSize { values: k.len() });
         }
         let d = opencv_matrix(text, "distortion_coefficients").unwrap_or_default();
         if d.len() > 5 && d[5..].iter().any(|&v| v != 0.0) {
-            return Err(format!(
-                "distortion_coefficients has {} terms; only OpenCV's first five (k1, k2, p1, p2, k3) are modelled",
-                d.len()
-            ));
+            return Err(CalibrationError::DistortionTerms { terms: d.len() });
         }
         let mut distortion = [0.0; 5];
         for (slot, v) in distortion.iter_mut().zip(&d) {
@@ -75,9 +99,7 @@ impl Camera {
         let (width, height) = match (scalar("image_width"), scalar("image_height"), size) {
             (Some(w), Some(h), _) => (w, h),
             (_, _, Some(s)) => s,
-            _ => {
-                return Err("the file has no image_width/image_height; give the image size".into())
-            }
+            _ => return Err(CalibrationError::NoImageSize),
         };
         let camera = Self {
             width,
@@ -88,7 +110,7 @@ impl Camera {
             cy: k[5],
             distortion,
         };
-        camera.validate().map_err(|e| e.to_string())?;
+        camera.validate()?;
         Ok(camera)
     }
 
@@ -150,25 +172,28 @@ impl Camera {
 }
 
 /// The `data: [...]` numbers of an `!!opencv-matrix` entry.
-fn opencv_matrix(text: &str, key: &str) -> Result<Vec<f64>, String> {
+fn opencv_matrix(text: &str, key: &'static str) -> Result<Vec<f64>, CalibrationError> {
     let start = text
         .find(&format!("{key}:"))
-        .ok_or_else(|| format!("no {key} in the file"))?;
+        .ok_or(CalibrationError::MissingKey { key })?;
     let rest = &text[start..];
     let open = rest
         .find("data:")
         .and_then(|d| rest[d..].find('[').map(|b| d + b + 1));
-    let open = open.ok_or_else(|| format!("{key} has no data: [ ... ]"))?;
+    let open = open.ok_or(CalibrationError::NoData { key })?;
     let close = rest[open..]
         .find(']')
-        .ok_or_else(|| format!("{key}: unterminated data"))?
+        .ok_or(CalibrationError::Unterminated { key })?
         + open;
     rest[open..close]
         .split(',')
         .map(|v| {
             v.trim()
                 .parse::<f64>()
-                .map_err(|_| format!("{key}: {:?} is not a number", v.trim()))
+                .map_err(|_| CalibrationError::NotANumber {
+                    key,
+                    value: v.trim().into(),
+                })
         })
         .collect()
 }
@@ -208,12 +233,22 @@ mod tests {
         }
         // A file without the image size needs it from the caller.
         let params = shared("tutorial_camera_params.yml");
-        assert!(Camera::from_opencv_yaml(&params, None)
-            .unwrap_err()
-            .contains("image size"));
+        let e = Camera::from_opencv_yaml(&params, None).unwrap_err();
+        assert_eq!(e, CalibrationError::NoImageSize);
+        assert!(e.to_string().contains("image size"));
         let c = Camera::from_opencv_yaml(&params, Some((640, 480))).unwrap();
         assert!((c.fy - 628.156).abs() < 1e-9 && (c.distortion[2] - 0.00754589).abs() < 1e-12);
-        assert!(Camera::from_opencv_yaml("nothing here", None).is_err());
+        assert_eq!(
+            Camera::from_opencv_yaml("nothing here", None),
+            Err(CalibrationError::MissingKey {
+                key: "camera_matrix"
+            })
+        );
+        let bad = "camera_matrix: !!opencv-matrix\n  data: [ 1, x ]";
+        assert_eq!(
+            Camera::from_opencv_yaml(bad, None).unwrap_err().to_string(),
+            "camera_matrix: \"x\" is not a number"
+        );
     }
 
     #[test]

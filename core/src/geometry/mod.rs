@@ -6,7 +6,7 @@ pub mod homography;
 pub mod pose;
 pub mod warp;
 
-pub use camera::Camera;
+pub use camera::{CalibrationError, Camera};
 pub use homography::Homography;
 pub use pose::{Pose, PoseJson};
 pub use warp::warp_bilinear;

@@ -7,6 +7,23 @@ use crate::family::Family;
 use svg::node::element::{Group, Line, Rectangle, Text};
 use svg::Document;
 
+/// A page size or ID list that cannot be read; each names the text that failed.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum SheetError {
+    #[error("page {text:?}: use a4, a3, letter or WIDTHxHEIGHT in mm")]
+    PageName { text: String },
+    #[error("page {text:?}: width and height must be 10 to 5000 mm")]
+    PageSize { text: String },
+    #[error("{id:?} in {text:?} is not an ID")]
+    NotAnId { id: String, text: String },
+    #[error("range {range:?} runs backwards")]
+    Backwards { range: String },
+    #[error("range {range:?} is too long")]
+    TooLong { range: String },
+    #[error("no IDs given")]
+    NoIds,
+}
+
 /// Page size in mm (portrait).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PageSize {
@@ -29,15 +46,15 @@ impl PageSize {
     };
 
     /// `a4`, `a3`, `letter`, or `WIDTHxHEIGHT` in mm (e.g. `100x150`).
-    pub fn parse(text: &str) -> Result<Self, String> {
+    pub fn parse(text: &str) -> Result<Self, SheetError> {
         match text.to_ascii_lowercase().as_str() {
             "a4" => Ok(Self::A4),
             "a3" => Ok(Self::A3),
             "letter" => Ok(Self::LETTER),
             other => {
-                let (w, h) = other.split_once('x').ok_or_else(|| {
-                    format!("page {text:?}: use a4, a3, letter or WIDTHxHEIGHT in mm")
-                })?;
+                let (w, h) = other
+                    .split_once('x')
+                    .ok_or_else(|| SheetError::PageName { text: text.into() })?;
                 let parse = |s: &str| {
                     s.trim()
                         .parse::<f64>()
@@ -49,9 +66,7 @@ impl PageSize {
                         width_mm: w,
                         height_mm: h,
                     }),
-                    _ => Err(format!(
-                        "page {text:?}: width and height must be 10 to 5000 mm"
-                    )),
+                    _ => Err(SheetError::PageSize { text: text.into() }),
                 }
             }
         }
@@ -111,22 +126,24 @@ const FONT: &str = "DejaVu Sans";
 const SCALE_BAR_MM: f64 = 100.0;
 
 /// Parses `0-47`, `3,5,9-12` into IDs.
-pub fn parse_ids(text: &str) -> Result<Vec<usize>, String> {
+pub fn parse_ids(text: &str) -> Result<Vec<usize>, SheetError> {
     let mut ids = Vec::new();
     for part in text.split(',').map(str::trim).filter(|p| !p.is_empty()) {
         let num = |s: &str| {
-            s.trim()
-                .parse::<usize>()
-                .map_err(|_| format!("{s:?} in {text:?} is not an ID"))
+            s.trim().parse::<usize>().map_err(|_| SheetError::NotAnId {
+                id: s.into(),
+                text: text.into(),
+            })
         };
         match part.split_once('-') {
             Some((a, b)) => {
                 let (a, b) = (num(a)?, num(b)?);
+                let range = || part.to_string();
                 if a > b {
-                    return Err(format!("range {part:?} runs backwards"));
+                    return Err(SheetError::Backwards { range: range() });
                 }
                 if b - a > 1_000_000 {
-                    return Err(format!("range {part:?} is too long"));
+                    return Err(SheetError::TooLong { range: range() });
                 }
                 ids.extend(a..=b);
             }
@@ -134,7 +151,7 @@ pub fn parse_ids(text: &str) -> Result<Vec<usize>, String> {
         }
     }
     if ids.is_empty() {
-        return Err("no IDs given".into());
+        return Err(SheetError::NoIds);
     }
     Ok(ids)
 }
@@ -389,9 +406,17 @@ mod tests {
     #[test]
     fn id_lists_and_ranges() {
         assert_eq!(parse_ids("0-3,7, 9").unwrap(), vec![0, 1, 2, 3, 7, 9]);
-        assert!(parse_ids("5-2").is_err());
-        assert!(parse_ids("x").is_err());
-        assert!(parse_ids("").is_err());
+        assert_eq!(
+            parse_ids("1, 5-2"),
+            Err(SheetError::Backwards {
+                range: "5-2".into()
+            })
+        );
+        assert_eq!(
+            parse_ids("x").unwrap_err().to_string(),
+            r#""x" in "x" is not an ID"#
+        );
+        assert_eq!(parse_ids(""), Err(SheetError::NoIds));
     }
 
     #[test]
@@ -404,7 +429,14 @@ mod tests {
                 height_mm: 150.0
             }
         );
-        assert!(PageSize::parse("1x1").is_err());
+        assert_eq!(
+            PageSize::parse("1x1"),
+            Err(SheetError::PageSize { text: "1x1".into() })
+        );
+        assert!(matches!(
+            PageSize::parse("a5"),
+            Err(SheetError::PageName { .. })
+        ));
         assert_eq!(PageSize::A4.landscape().width_mm, 297.0);
     }
 }

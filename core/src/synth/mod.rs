@@ -11,14 +11,36 @@ pub mod contact;
 
 use crate::family::marker_plane_points;
 use crate::family::Family;
-use crate::geometry::{bounding_box, Camera, Homography, Pose, PoseJson};
+use crate::geometry::{bounding_box, Camera, GeometryError, Homography, Pose, PoseJson};
 use crate::image::GrayImage;
-use crate::render::{marker_scene, raster, SceneOptions};
+use crate::render::{marker_scene, raster, RenderError, SceneOptions};
 use augment::{draw, AugmentRanges};
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
+
+/// A scene that cannot be synthesised; each names the value that failed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SynthError {
+    #[error("image size {width}×{height} must be 16 to 8192 px")]
+    ImageSize { width: u32, height: u32 },
+    /// The camera (field of view) or a marker placement that does not determine a homography.
+    #[error(transparent)]
+    Geometry(#[from] GeometryError),
+    #[error(transparent)]
+    Render(#[from] RenderError),
+    #[error("the placement of marker {id} is degenerate")]
+    DegeneratePlacement { id: usize },
+}
+
+/// `train/` still returns plain messages; this keeps its `?` on [`synthesize`] working until it
+/// has typed errors of its own.
+impl From<SynthError> for String {
+    fn from(e: SynthError) -> Self {
+        e.to_string()
+    }
+}
 
 /// A float image, 0 = black, 1 = white; pixel centres at integer coordinates.
 #[derive(Debug, Clone, PartialEq)]
@@ -191,18 +213,17 @@ struct Placement {
     pose: Option<(Pose, f64)>,
 }
 
-pub fn synthesize(family: &Family, config: &SynthConfig, seed: u64) -> Result<Sample, String> {
+pub fn synthesize(family: &Family, config: &SynthConfig, seed: u64) -> Result<Sample, SynthError> {
     if config.width < 16 || config.height < 16 || config.width > 8192 || config.height > 8192 {
-        return Err(format!(
-            "image size {}×{} must be 16 to 8192 px",
-            config.width, config.height
-        ));
+        return Err(SynthError::ImageSize {
+            width: config.width,
+            height: config.height,
+        });
     }
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let aug = &config.augment;
     let mut canvas = background::procedural(&mut rng, config.width, config.height);
-    let camera = Camera::from_diagonal_fov(config.width, config.height, config.fov_deg)
-        .map_err(|e| e.to_string())?;
+    let camera = Camera::from_diagonal_fov(config.width, config.height, config.fov_deg)?;
 
     let count = match config.mode {
         Mode::Patch => 1,
@@ -326,7 +347,11 @@ fn roi4(family: &Family) -> Vec<[f64; 2]> {
     family.roi_points()[..4].to_vec()
 }
 
-fn place_quad(family: &Family, rng: &mut ChaCha8Rng, c: &SynthConfig) -> Result<Placement, String> {
+fn place_quad(
+    family: &Family,
+    rng: &mut ChaCha8Rng,
+    c: &SynthConfig,
+) -> Result<Placement, GeometryError> {
     let (w, h) = (c.width as f64, c.height as f64);
     let side = rng.random_range(0.15..0.55) * w.min(h);
     let (cx, cy) = (rng.random_range(0.0..w), rng.random_range(0.0..h));
@@ -340,7 +365,7 @@ fn place_quad(family: &Family, rng: &mut ChaCha8Rng, c: &SynthConfig) -> Result<
             [cx + co * x - s * y, cy + s * x + co * y]
         })
         .collect();
-    let to_image = Homography::from_points(&roi4(family), &quad).map_err(|e| e.to_string())?;
+    let to_image = Homography::from_points(&roi4(family), &quad)?;
     Ok(Placement {
         to_image,
         pose: None,
@@ -351,7 +376,7 @@ fn place_patch(
     family: &Family,
     rng: &mut ChaCha8Rng,
     c: &SynthConfig,
-) -> Result<Placement, String> {
+) -> Result<Placement, GeometryError> {
     let mut a = [0.0; 8];
     a.iter_mut().for_each(|v| *v = rng.random_range(0.05..0.25));
     let (w, h) = (c.width as f64, c.height as f64);
@@ -361,7 +386,7 @@ fn place_patch(
         [(1.0 - a[4]) * w, (1.0 - a[5]) * h],
         [a[6] * w, (1.0 - a[7]) * h],
     ];
-    let to_image = Homography::from_points(&roi4(family), &quad).map_err(|e| e.to_string())?;
+    let to_image = Homography::from_points(&roi4(family), &quad)?;
     Ok(Placement {
         to_image,
         pose: None,
@@ -373,7 +398,7 @@ fn place_camera(
     rng: &mut ChaCha8Rng,
     c: &SynthConfig,
     camera: &Camera,
-) -> Result<Placement, String> {
+) -> Result<Placement, GeometryError> {
     let side = rng.random_range(c.side_m[0]..=c.side_m[1]);
     let distance = rng.random_range(c.distance_m[0]..=c.distance_m[1]);
     let view = rng
@@ -478,7 +503,7 @@ fn draw_marker(
     black: f32,
     white: f32,
     balance: [f32; 3],
-) -> Result<(), String> {
+) -> Result<(), SynthError> {
     let scene = marker_scene(
         family,
         id,
@@ -486,8 +511,7 @@ fn draw_marker(
             side_mm: Some(family.roi_side()),
             quiet_zone: None,
         },
-    )
-    .map_err(|e| e.to_string())?;
+    )?;
     // scene mm == marker units here (scale 1); area with quiet zone in marker units:
     let area = family.extent().grow(family.quiet_zone());
     let corners = [
@@ -502,7 +526,7 @@ fn draw_marker(
         .fold(0.0, f64::max);
     let px_per_unit = (1.25 * longest / area.width().max(area.height()))
         .clamp(2.0, 4096.0 / area.width().max(area.height()));
-    let pixmap = raster::rasterize(&scene, px_per_unit).map_err(|e| e.to_string())?;
+    let pixmap = raster::rasterize(&scene, px_per_unit)?;
     let (pw, ph) = (pixmap.width() as usize, pixmap.height() as usize);
     let (scale_x, scale_y) = (pw as f64 / area.width(), ph as f64 / area.height());
     // Luminance of the white-balanced colours (Rec. 709), clamped to the paper's white.
@@ -520,7 +544,7 @@ fn draw_marker(
         .collect();
     let from_image = to_image
         .inverse()
-        .ok_or("the marker placement is degenerate")?;
+        .ok_or(SynthError::DegeneratePlacement { id })?;
     let b = bounding_box(&img);
     let (x0, y0) = (b[0].floor().max(0.0) as u32, b[1].floor().max(0.0) as u32);
     let (x1, y1) = (

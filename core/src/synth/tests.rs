@@ -166,3 +166,23 @@ fn a_moving_marker_is_blurred_alone() {
     let far = far.expect("some pixel lies away from the markers");
     assert_eq!(still.image.pixels[far], moving.image.pixels[far]);
 }
+
+#[test]
+fn impossible_configs_name_the_value() {
+    let f = family("apriltag-36h11");
+    let mut c = SynthConfig::new(Mode::Quad);
+    c.width = 8;
+    assert!(matches!(
+        synthesize(&f, &c, 1),
+        Err(SynthError::ImageSize {
+            width: 8,
+            height: _
+        })
+    ));
+    let mut c = SynthConfig::new(Mode::Camera);
+    c.fov_deg = 200.0;
+    assert!(matches!(
+        synthesize(&f, &c, 1),
+        Err(SynthError::Geometry(GeometryError::BadCamera(_)))
+    ));
+}

@@ -184,7 +184,10 @@ fn a_wrong_id_is_a_false_positive() {
     // Detections for an image that is not in the set are refused.
     let mut stray = detections(&set, |_, _| vec![]);
     stray.images[0].file = "images/nope.png".into();
-    assert!(score(&set, None, &stray).is_err());
+    assert!(matches!(
+        score(&set, None, &stray),
+        Err(EvalError::UnknownImage { file }) if file == "images/nope.png"
+    ));
 }
 
 /// An in-process detector that reads the truth back from the manifest by image content.
@@ -224,4 +227,19 @@ fn in_process_detectors_run_over_the_images_on_disk() {
         1.0
     );
     let _: Option<Truth> = None;
+}
+
+#[test]
+fn a_missing_or_broken_set_names_its_file_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("set.json");
+    let e = load(dir.path()).unwrap_err();
+    assert!(
+        matches!(&e, EvalError::Read { path: p, .. } if *p == path),
+        "{e}"
+    );
+    std::fs::write(&path, "{").unwrap();
+    let e = load(dir.path()).unwrap_err();
+    assert!(matches!(&e, EvalError::Json { .. }), "{e}");
+    assert_eq!(e.to_string().matches("set.json").count(), 1, "{e}");
 }
