@@ -12,6 +12,11 @@ use crate::color::Rgb;
 use crate::family::pattern::{parse_category, CategoryPattern};
 use std::collections::HashMap;
 
+// Limits on what a family may ask the renderers to draw and print. A fuzz campaign found that
+// unbounded inputs made `validate`, `render` and `sheet` run for minutes or use gigabytes; each
+// limit is far above what a real design needs (see the built-in families) and below what makes a
+// command slow.
+
 pub const MAX_GRID: u32 = 32;
 pub const MAX_KEYPOINTS: usize = 4096;
 const MAX_RINGS: usize = 16;
@@ -19,6 +24,37 @@ const MAX_SLOTS: u32 = 512;
 const MAX_CODES: usize = 1_000_000;
 /// Coordinates beyond this many marker units are certainly a typo.
 const MAX_COORD: f64 = 1000.0;
+
+/// Longest `title`, in characters: it is printed on one line of every sheet's header, where about
+/// 100 characters of its 3.5 mm type fill the width of an A4 page (the PDF took seconds to lay out
+/// a title of 100 000 characters).
+pub const MAX_TITLE_CHARS: usize = 100;
+/// Longest `description`, in characters: a few paragraphs, enough to describe any design.
+pub const MAX_DESCRIPTION_CHARS: usize = 4000;
+/// Longest `source` and `codebook.source`, in characters: a citation, a URL and a licence take a
+/// few hundred.
+pub const MAX_SOURCE_CHARS: usize = 1000;
+/// Longest category name, in characters: names label categories in warnings, the studio and the
+/// legend, like the family name, which has the same limit.
+pub const MAX_CATEGORY_NAME_CHARS: usize = 64;
+/// Most categories in a family. The detector classifies every keypoint into one of them (its
+/// network has one class per category plus the background), and a category is only useful when it
+/// looks unlike every other at a few pixels per cell: 64 is far beyond what can be told apart, and
+/// keeps the pairwise look-alike check of [`crate::render::readback`] (4 turns each) instant.
+pub const MAX_CATEGORIES: usize = 64;
+/// Most path segments of all categories' primitives together (a dot or ring has 6 or 12): bounds
+/// the cost of drawing every category, as the look-alike check and the studio's swatches do.
+pub const MAX_FAMILY_SEGMENTS: usize = 8192;
+/// Most primitives one marker draws (every keypoint's category's primitives, the heaviest symbol
+/// category at each symbol keypoint): one vector node each in SVG and PDF output, and usvg, which
+/// reads sheet pages, stops at 1 000 000 nodes; 8192 leaves room for a hundred markers a page,
+/// while the largest layouts (4096 keypoints) still get two primitives per keypoint.
+pub const MAX_MARKER_PRIMITIVES: usize = 8192;
+/// Most path segments one marker draws: enough for a dot and a ring (16 segments) at each of the
+/// 4096 keypoints of the largest layouts, while a marker stays a few MB of SVG path data and
+/// rasterizes in well under a second even when every curve crosses every scanline (a 9 MB path
+/// repeated over a marker needed gigabytes).
+pub const MAX_MARKER_SEGMENTS: usize = 65_536;
 
 pub(super) fn build(spec: FamilySpec) -> Result<Family, FamilyError> {
     let mut problems = Vec::new();
@@ -32,6 +68,20 @@ pub(super) fn build(spec: FamilySpec) -> Result<Family, FamilyError> {
         ));
     }
     check_name(&spec.name, &mut problems);
+    check_text("title", &spec.title, MAX_TITLE_CHARS, &mut problems);
+    check_text(
+        "description",
+        &spec.description,
+        MAX_DESCRIPTION_CHARS,
+        &mut problems,
+    );
+    check_text("source", &spec.source, MAX_SOURCE_CHARS, &mut problems);
+    check_text(
+        "codebook.source",
+        &spec.codebook.source,
+        MAX_SOURCE_CHARS,
+        &mut problems,
+    );
     let background = Rgb::parse(&spec.background)
         .map_err(|e| problems.push(Problem::new("background", e.to_string())))
         .ok();
@@ -49,6 +99,9 @@ pub(super) fn build(spec: FamilySpec) -> Result<Family, FamilyError> {
 
     let (keypoints, extent, quiet_zone) = layout_keypoints(&spec, &names, &mut problems);
     check_print(&spec, &mut problems);
+    if problems.is_empty() {
+        check_marker_size(&spec, &categories, &keypoints, &mut problems);
+    }
     if !problems.is_empty() {
         return Err(FamilyError::new(problems));
     }
@@ -119,8 +172,33 @@ fn check_name(name: &str, problems: &mut Vec<Problem>) {
     if !ok {
         problems.push(Problem::new(
             "name",
-            format!("{name:?} must be 1–64 letters, digits, '-', '_' or '.'"),
+            format!(
+                "{} must be 1–64 letters, digits, '-', '_' or '.'",
+                quoted(name)
+            ),
         ));
+    }
+}
+
+fn check_text(path: &str, text: &str, max: usize, problems: &mut Vec<Problem>) {
+    // Bytes bound characters from above: most texts are short and need no count.
+    if text.len() > max {
+        let n = text.chars().count();
+        if n > max {
+            problems.push(Problem::new(
+                path,
+                format!("{n} characters is over the limit of {max}"),
+            ));
+        }
+    }
+}
+
+/// A text quoted for a message, cut short so that a huge value does not make a huge message.
+fn quoted(text: &str) -> String {
+    const SHOWN: usize = 40;
+    match text.char_indices().nth(SHOWN) {
+        Some((end, _)) => format!("{:?}…", &text[..end]),
+        None => format!("{text:?}"),
     }
 }
 
@@ -131,11 +209,29 @@ fn check_categories(spec: &FamilySpec, problems: &mut Vec<Problem>) -> Vec<Categ
             "a family needs at least two categories",
         ));
     }
+    if spec.categories.len() > MAX_CATEGORIES {
+        problems.push(Problem::new(
+            "categories",
+            format!(
+                "{} categories is over the limit of {MAX_CATEGORIES}",
+                spec.categories.len()
+            ),
+        ));
+        return Vec::new();
+    }
     let mut seen: HashMap<&str, usize> = HashMap::new();
     let mut out = Vec::new();
     for (i, cat) in spec.categories.iter().enumerate() {
         let path = format!("categories[{i}]");
-        if cat.name.is_empty() || cat.name == "." {
+        if cat.name.chars().count() > MAX_CATEGORY_NAME_CHARS {
+            problems.push(Problem::new(
+                format!("{path}.name"),
+                format!(
+                    "{} is over the limit of {MAX_CATEGORY_NAME_CHARS} characters",
+                    quoted(&cat.name)
+                ),
+            ));
+        } else if cat.name.is_empty() || cat.name == "." {
             problems.push(Problem::new(
                 format!("{path}.name"),
                 "a category needs a name other than \".\"",
@@ -144,8 +240,8 @@ fn check_categories(spec: &FamilySpec, problems: &mut Vec<Problem>) -> Vec<Categ
             problems.push(Problem::new(
                 format!("{path}.name"),
                 format!(
-                    "category {:?} is already defined at categories[{first}]",
-                    cat.name
+                    "category {} is already defined at categories[{first}]",
+                    quoted(&cat.name)
                 ),
             ));
         }
@@ -154,7 +250,71 @@ fn check_categories(spec: &FamilySpec, problems: &mut Vec<Problem>) -> Vec<Categ
             Err(mut p) => problems.append(&mut p),
         }
     }
+    let segments: usize = out.iter().map(segment_count).sum();
+    if segments > MAX_FAMILY_SEGMENTS {
+        problems.push(Problem::new(
+            "categories",
+            format!(
+                "the categories' primitives have {segments} path segments in all, over the limit \
+                 of {MAX_FAMILY_SEGMENTS}"
+            ),
+        ));
+    }
     out
+}
+
+fn segment_count(pattern: &CategoryPattern) -> usize {
+    pattern.items.iter().map(|it| it.path.0.len()).sum()
+}
+
+/// What one marker draws at most must stay within [`MAX_MARKER_PRIMITIVES`] and
+/// [`MAX_MARKER_SEGMENTS`]; the problem names the category that draws the most.
+fn check_marker_size(
+    spec: &FamilySpec,
+    categories: &[CategoryPattern],
+    keypoints: &[Keypoint],
+    problems: &mut Vec<Problem>,
+) {
+    let costs: Vec<[usize; 2]> = categories
+        .iter()
+        .map(|c| [c.items.len(), segment_count(c)])
+        .collect();
+    let limits = [
+        (MAX_MARKER_PRIMITIVES, "primitives"),
+        (MAX_MARKER_SEGMENTS, "path segments"),
+    ];
+    for (m, (limit, what)) in limits.into_iter().enumerate() {
+        // A symbol keypoint may show any symbol category: count the heaviest.
+        let heaviest = (0..categories.len())
+            .filter(|&c| matches!(spec.categories[c].role, Role::Symbol(_)))
+            .max_by_key(|&c| costs[c][m]);
+        let mut uses = vec![0usize; categories.len()];
+        for k in keypoints {
+            let c = match k.assignment {
+                Assignment::Fixed(c) => Some(c),
+                Assignment::Symbol(_) => heaviest,
+            };
+            if let Some(c) = c {
+                uses[c] += 1;
+            }
+        }
+        let drawn = |c: usize| uses[c] * costs[c][m];
+        let total: usize = (0..categories.len()).map(drawn).sum();
+        if total > limit {
+            let c = (0..categories.len())
+                .max_by_key(|&c| drawn(c))
+                .expect("a marker over the limit draws some category");
+            problems.push(Problem::new(
+                format!("categories[{c}].primitives"),
+                format!(
+                    "a marker draws up to {total} {what}, over the limit of {limit}; most are \
+                     this category's {}, drawn at {} keypoints",
+                    costs[c][m], uses[c]
+                ),
+            ));
+            return;
+        }
+    }
 }
 
 /// Symbol value → category; values must be exactly 0..q.
@@ -236,9 +396,10 @@ fn layout_keypoints(
                         Some(&cat) => {
                             fixed.insert(c, cat);
                         }
-                        None => {
-                            problems.push(Problem::new(path, format!("unknown category {name:?}")))
-                        }
+                        None => problems.push(Problem::new(
+                            path,
+                            format!("unknown category {}", quoted(name)),
+                        )),
                     },
                     _ => problems.push(Problem::new(
                         path,
@@ -358,7 +519,7 @@ fn layout_keypoints(
         } else {
             problems.push(Problem::new(
                 format!("{path}.category"),
-                format!("unknown category {:?}", e.category),
+                format!("unknown category {}", quoted(&e.category)),
             ));
             continue;
         };
@@ -379,8 +540,10 @@ fn layout_keypoints(
                 keypoints.len()
             ),
         ));
+    } else {
+        // Only now: it compares every pair of keypoints, hours of work for a million extras.
+        check_overlaps(&keypoints, first_extra, problems);
     }
-    check_overlaps(&keypoints, first_extra, problems);
     (keypoints, extent, quiet_zone)
 }
 
