@@ -303,9 +303,10 @@ fn shape_path(shape: &Shape) -> Result<Path, FieldError> {
 pub const MAX_PATH_BYTES: usize = 16 * 1024;
 
 /// Most segments one `path` primitive may have once arcs are split into cubics. A cell is drawn a
-/// few hundred pixels wide at most, so a thousand segments already give more detail than any
-/// rendering shows; beyond that rasterizers slow down sharply (their edge lists grow with the
-/// segments that cross a scanline).
+/// few hundred pixels wide at most, so 512 segments give more detail than any rendering shows. The
+/// rasterizer keeps the edges that cross a scanline in an insertion-sorted list, so its time grows
+/// with the square of a path's segments when they pile up: 8000 smooth cubics took 5.4 s, 512
+/// take about 0.1 s over every cell of a marker at 300 dpi.
 pub const MAX_PATH_SEGMENTS: usize = 512;
 
 /// Largest arc radius in path data, in cells: an arc between points within ±[`MAX_REACH`] that
@@ -424,6 +425,7 @@ fn simplify_path(d: &str, max_segs: usize) -> Result<Vec<Seg>, String> {
                     ));
                 }
                 let p = rel(abs, x, y);
+                // Before the arc arithmetic, which needs finite ends.
                 check_point(p)?;
                 arc(cur, rx, ry, x_axis_rotation, large_arc, sweep, p, &mut segs);
             }
