@@ -345,6 +345,9 @@ fn small_set(dir: &Path) -> (Value, Value) {
     (set, detections)
 }
 
+/// Damages one field of a JSON file.
+type Breaks = fn(&mut Value);
+
 #[test]
 fn eval_score_refuses_sets_and_detections_that_cannot_be_scored() {
     let dir = tempfile::tempdir().unwrap();
@@ -353,7 +356,7 @@ fn eval_score_refuses_sets_and_detections_that_cannot_be_scored() {
     tagsmith(d, &["eval", "score", "set", "d.json", "-o", "report"]).ok();
 
     let write_set = |s: &Value| std::fs::write(d.join("set/set.json"), s.to_string()).unwrap();
-    let broken_sets: [(&str, fn(&mut Value)); 5] = [
+    let broken_sets: [(&str, Breaks); 5] = [
         ("family", |s| s["family"] = json!("no-such-family")),
         ("side_m", |s| s["side_m"] = json!(0.0)),
         ("side_m", |s| s["side_m"] = json!(-0.05)),
@@ -371,7 +374,7 @@ fn eval_score_refuses_sets_and_detections_that_cannot_be_scored() {
     }
     write_set(&set);
 
-    let broken_detections: [(&str, fn(&mut Value)); 2] = [
+    let broken_detections: [(&str, Breaks); 2] = [
         ("rotation", |f| {
             f["images"][0]["detections"][0]["pose"]["rotation"] =
                 json!([[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]);
