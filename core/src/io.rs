@@ -183,8 +183,61 @@ fn remove_stale_temporaries(dir: &Path) {
     }
 }
 
+/// A folder made for one run's output, with the folders above it that did not exist yet. Dropped
+/// without [`CreatedDir::keep`] (the run failed), it removes the topmost folder it created with
+/// everything in it, so a failed run leaves no empty or partial output behind; folders that were
+/// there before are never removed.
+#[must_use = "dropping it removes the folder again"]
+pub struct CreatedDir {
+    created: Option<std::path::PathBuf>,
+}
+
+impl CreatedDir {
+    /// `create_dir_all(path)`, remembering the first missing ancestor.
+    pub fn create(path: &Path) -> std::io::Result<Self> {
+        let created = path
+            .ancestors()
+            .take_while(|p| !p.as_os_str().is_empty() && !p.exists())
+            .last()
+            .map(Path::to_path_buf);
+        std::fs::create_dir_all(path)?;
+        Ok(Self { created })
+    }
+
+    /// The run succeeded: the folders stay.
+    pub fn keep(mut self) {
+        self.created = None;
+    }
+}
+
+impl Drop for CreatedDir {
+    fn drop(&mut self) {
+        if let Some(dir) = self.created.take() {
+            // Best effort: the run's own error is the one to report.
+            let _ = std::fs::remove_dir_all(dir);
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn a_created_folder_is_removed_unless_kept_and_an_old_one_stays() {
+        let dir = tempfile::tempdir().unwrap();
+        let deep = dir.path().join("new/set/images");
+        drop(CreatedDir::create(&deep).unwrap());
+        assert!(!dir.path().join("new").exists());
+
+        CreatedDir::create(&deep).unwrap().keep();
+        assert!(deep.exists());
+
+        std::fs::write(deep.join("old.png"), b"x").unwrap();
+        drop(CreatedDir::create(&deep).unwrap());
+        assert!(deep.join("old.png").exists());
+        drop(CreatedDir::create(&deep.join("more")).unwrap());
+        assert!(!deep.join("more").exists() && deep.join("old.png").exists());
+    }
+
     use super::*;
 
     #[test]

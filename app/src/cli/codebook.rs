@@ -1,7 +1,7 @@
 //! `codebook stats`, `codebook generate` and `export-opencv`: the codes of a family.
 
 use super::common::{load_family, progress_bar, rotations_of, write_output};
-use super::error::{Classify, Result};
+use super::error::{bad_input, Classify, Result};
 use clap::{Args, Subcommand};
 use std::path::PathBuf;
 use tagsmith::codebook::{self, Order};
@@ -71,13 +71,15 @@ pub struct GenerateArgs {
     /// Minimum Hamming distance over the rotations the layout cannot tell apart.
     #[arg(long)]
     pub min_distance: u32,
-    /// Stop after this many codes.
-    #[arg(long, default_value_t = 100_000)]
+    /// Stop after this many codes [range: 1..=100000, the most a family file holds].
+    #[arg(long, default_value_t = 100_000,
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=100_000))]
     pub count: usize,
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Candidates to try before stopping.
-    #[arg(long, default_value_t = 20_000_000)]
+    /// Candidates to try before stopping [range: 1..=10000000000, hours of search].
+    #[arg(long, default_value_t = 20_000_000,
+          value_parser = clap::value_parser!(u64).range(1..=10_000_000_000))]
     pub max_candidates: u64,
     /// Minimum symbol changes between consecutive code positions.
     #[arg(long, default_value_t = 0)]
@@ -92,7 +94,8 @@ pub struct GenerateArgs {
     /// random order.
     #[arg(long)]
     pub lexicographic: bool,
-    /// Name of the new family [default: the old name + "-generated"].
+    /// Name of the new family: 1–64 letters, digits, '-', '_' or '.', not starting with '.'
+    /// [default: the old name + "-generated"].
     #[arg(long)]
     pub name: Option<String>,
     #[arg(short, long)]
@@ -102,6 +105,15 @@ pub struct GenerateArgs {
 impl GenerateArgs {
     pub fn run(self) -> Result<()> {
         let family = load_family(&self.family)?;
+        let name = self
+            .name
+            .clone()
+            .unwrap_or_else(|| format!("{}-generated", family.name()));
+        // The name is the user's and becomes file names; refused here, before the search, it is
+        // bad input rather than a generated family that fails to load.
+        if let Some(why) = family::name_problem(&name) {
+            return Err(bad_input!("--name: {why}"));
+        }
         let mut params = family.generate_params(self.min_distance);
         params.max_codes = self.count;
         params.seed = self.seed;
@@ -124,9 +136,7 @@ impl GenerateArgs {
         })?;
         bar.finish_and_clear();
         let mut spec = family.spec().clone();
-        spec.name = self
-            .name
-            .unwrap_or_else(|| format!("{}-generated", family.name()));
+        spec.name = name;
         spec.codebook = report.codebook.to_spec(
             report.achieved_min_distance,
             &format!(

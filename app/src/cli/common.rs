@@ -54,3 +54,34 @@ pub(crate) fn progress_bar(len: u64, template: &str) -> ProgressBar {
     ProgressBar::new(len)
         .with_style(ProgressStyle::with_template(template).expect("a valid template"))
 }
+
+/// A clap value parser for a number in `[min, max]` whose error names the range (clap puts the
+/// option in front). Floats have no ranged parser in clap, and a size of `1e300` or `5e-324` must
+/// fail here rather than as an allocation or a NaN further on.
+pub(crate) fn f64_in(
+    min: f64,
+    max: f64,
+) -> impl Fn(&str) -> std::result::Result<f64, String> + Clone + Send + Sync + 'static {
+    move |text| {
+        let v: f64 = text.trim().parse().map_err(|e| format!("{e}"))?;
+        if v >= min && v <= max {
+            Ok(v)
+        } else {
+            Err(format!("{v} is not in [{min}, {max}]"))
+        }
+    }
+}
+
+/// As [`f64_in`], for ranges open at zero: `(0, max]`.
+pub(crate) fn positive_f64_up_to(
+    max: f64,
+) -> impl Fn(&str) -> std::result::Result<f64, String> + Clone + Send + Sync + 'static {
+    move |text| {
+        let v: f64 = text.trim().parse().map_err(|e| format!("{e}"))?;
+        if v > 0.0 && v <= max {
+            Ok(v)
+        } else {
+            Err(format!("{v} is not in (0, {max}]"))
+        }
+    }
+}

@@ -11,6 +11,12 @@ use tagsmith::detect::MarkerReport;
 use tagsmith::family::Family;
 use tagsmith::geometry::Camera;
 
+/// Passes beyond the second rarely move a keypoint; each costs a full network run, and a million
+/// of them made `detect` look hung.
+fn iterations() -> clap::builder::RangedU64ValueParser<usize> {
+    clap::builder::RangedU64ValueParser::<usize>::new().range(1..=10)
+}
+
 #[derive(Args, Debug)]
 pub struct DetectArgs {
     /// Image: PNG, JPEG, BMP, TIFF, WebP or PNM (colour is converted to gray).
@@ -32,8 +38,8 @@ pub struct DetectArgs {
     /// Marker size in mm (ROI side) for the pose [default: the family's print size].
     #[arg(long)]
     pub side_mm: Option<f64>,
-    /// Stage-2 passes (the second starts from the first's keypoints).
-    #[arg(long, default_value_t = 2)]
+    /// Stage-2 passes (the second starts from the first's keypoints) [range: 1..=10].
+    #[arg(long, default_value_t = 2, value_parser = iterations())]
     pub iterations: usize,
     /// Write the image with the ROI, outline and keypoints drawn on it (PNG).
     #[arg(long)]
@@ -109,7 +115,8 @@ pub struct DetectSetArgs {
     /// (uniform), standing in for stage 1's error.
     #[arg(long, default_value_t = 0.05)]
     pub roi_noise: f64,
-    #[arg(long, default_value_t = 2)]
+    /// Stage-2 passes per ROI [range: 1..=10].
+    #[arg(long, default_value_t = 2, value_parser = iterations())]
     pub iterations: usize,
     /// Only the protocol's Normal images (≤ 50 cm, ≤ 60°).
     #[arg(long)]

@@ -41,7 +41,7 @@ impl CliError {
     }
 
     /// The same kind of error, its message led by `what` (`--ids: …`, `camera.yml: …`).
-    fn concerning(self, what: impl fmt::Display) -> Self {
+    pub(crate) fn concerning(self, what: impl fmt::Display) -> Self {
         match self {
             CliError::BadInput(e) => CliError::bad_input(format_args!("{what}: {e:#}")),
             CliError::Failed(e) => CliError::failure(format_args!("{what}: {e:#}")),
@@ -173,7 +173,10 @@ impl From<EvalError> for CliError {
             EvalError::BadSide { .. }
             | EvalError::Read { .. }
             | EvalError::Json { .. }
-            | EvalError::UnknownImage { .. } => CliError::bad_input(e),
+            | EvalError::UnknownImage { .. }
+            | EvalError::TooLarge { .. }
+            | EvalError::BadSet { .. }
+            | EvalError::BadDetections { .. } => CliError::bad_input(e),
         }
     }
 }

@@ -1,6 +1,6 @@
 //! `eval generate`, `eval score` and `eval oracle`: the evaluation harness.
 
-use super::common::{load_family, print_quietly, write_output};
+use super::common::{f64_in, load_family, print_quietly, write_output};
 use super::error::{bad_input, Classify, Concerning, Result};
 use anyhow::Context;
 use clap::{Args, Subcommand};
@@ -32,11 +32,12 @@ impl EvalCommand {
 pub struct GenerateSetArgs {
     /// Built-in family name or path to a family JSON file.
     pub family: String,
-    /// Marker side in mm (corner to corner).
-    #[arg(long, default_value_t = 50.0)]
+    /// Marker side in mm (corner to corner) [range: [1, 1000]].
+    #[arg(long, default_value_t = 50.0, value_parser = f64_in(1.0, 1000.0))]
     pub side_mm: f64,
-    /// Images per (distance, angle) cell of the protocol (10 × 10 cells).
-    #[arg(long, default_value_t = 1)]
+    /// Images per (distance, angle) cell of the protocol (10 × 10 cells) [range: 1..=100: at most
+    /// 10 000 protocol images, plus 205 for the sweeps].
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=100))]
     pub per_cell: u32,
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -87,8 +88,12 @@ impl ScoreArgs {
             .bad_input()?;
         let file: DetectionsFile =
             serde_json::from_str(&text).map_err(|e| bad_input!("{}: {e}", detections.display()))?;
-        let family = load_family(&s.family).ok();
-        let report = score::score(&s, family.as_ref(), &file).concerning(detections.display())?;
+        // A set names the family its truth was drawn from; one that does not load is a broken
+        // manifest, not a reason to score without the family's geometry.
+        let family = load_family(&s.family).map_err(|e| {
+            e.concerning(format_args!("{}: family", dir.join("set.json").display()))
+        })?;
+        let report = score::score(&s, Some(&family), &file).concerning(detections.display())?;
         let slug: String = file
             .detector
             .chars()

@@ -1,11 +1,30 @@
 //! `render` and `sheet`: markers to SVG, PNG and printable pages.
 
-use super::common::{extension, load_family, write_output};
-use super::error::{bad_input, Concerning, Result};
+use super::common::{extension, f64_in, load_family, write_output};
+use super::error::{bad_input, CliError, Concerning, Result};
 use clap::Args;
 use std::path::PathBuf;
-use tagsmith::render::sheet::{layout_sheet, parse_ids, PageSize, SheetParams};
-use tagsmith::render::{marker_scene, pdf, raster, svg, SceneOptions};
+use tagsmith::render::sheet::{layout_sheet, parse_ids, PageSize, SheetParams, MAX_IDS};
+use tagsmith::render::{marker_scene, pdf, raster, svg, RenderError, SceneOptions};
+
+/// The marker sizes a family file may declare (`print.marker_side_mm`): 1 mm to 2 m.
+const SIDE_MM: (f64, f64) = (1.0, 2000.0);
+/// A quiet zone wider than 100 cells only makes the page or image empty.
+const QUIET_ZONE: (f64, f64) = (0.0, 100.0);
+/// Margins and spacing beyond 1 m leave no room on any page.
+const GAP_MM: (f64, f64) = (0.0, 1000.0);
+
+/// Names the option a rendering error is about: the ID (`--id`, `--ids`) or the size options
+/// (a marker that does not fit, a raster that cannot be made).
+fn naming_options(e: RenderError, ids: &str, sizes: &str) -> CliError {
+    let what = match e {
+        RenderError::NoSuchId { .. } => ids,
+        // Encoding fails for want of memory or space, not for an option.
+        RenderError::Encode(_) => return e.into(),
+        _ => sizes,
+    };
+    CliError::from(e).concerning(what)
+}
 
 #[derive(Args, Debug)]
 pub struct RenderArgs {
@@ -13,14 +32,15 @@ pub struct RenderArgs {
     pub family: String,
     #[arg(long)]
     pub id: usize,
-    /// Tag size in mm: the distance between ROI corners (the outer black square's side).
-    #[arg(long)]
+    /// Tag size in mm: the distance between ROI corners (the outer black square's side)
+    /// [range: [1, 2000]].
+    #[arg(long, value_parser = f64_in(SIDE_MM.0, SIDE_MM.1))]
     pub size_mm: Option<f64>,
-    /// PNG only: image width in pixels, quiet zone included [default: 512].
-    #[arg(long)]
+    /// PNG only: image width in pixels, quiet zone included [range: 1..=20000] [default: 512].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=20_000))]
     pub px: Option<u32>,
-    /// Quiet zone in cells (marker units) [default: the family's].
-    #[arg(long)]
+    /// Quiet zone in cells (marker units) [range: [0, 100]] [default: the family's].
+    #[arg(long, value_parser = f64_in(QUIET_ZONE.0, QUIET_ZONE.1))]
     pub quiet_zone: Option<f64>,
     /// Output file: .svg or .png.
     #[arg(short, long)]
@@ -34,7 +54,8 @@ impl RenderArgs {
             side_mm: self.size_mm,
             quiet_zone: self.quiet_zone,
         };
-        let scene = marker_scene(&family, self.id, options)?;
+        let scene = marker_scene(&family, self.id, options)
+            .map_err(|e| naming_options(e, "--id", "--size-mm, --quiet-zone"))?;
         let bytes = match extension(&self.output).as_str() {
             "svg" => {
                 if self.px.is_some() {
@@ -43,7 +64,8 @@ impl RenderArgs {
                 svg::marker_svg(&scene).into_bytes()
             }
             "png" => {
-                let pixmap = raster::rasterize_width(&scene, self.px.unwrap_or(512))?;
+                let pixmap = raster::rasterize_width(&scene, self.px.unwrap_or(512))
+                    .map_err(|e| naming_options(e, "--id", "--px"))?;
                 raster::encode_png(&pixmap)?
             }
             other => {
@@ -74,7 +96,7 @@ impl RenderArgs {
 pub struct SheetArgs {
     /// Built-in family name or path to a family JSON file.
     pub family: String,
-    /// IDs to print: ranges and lists, e.g. 0-47 or 1,5,9-12.
+    /// IDs to print: ranges and lists, e.g. 0-47 or 1,5,9-12; at most 10000 markers.
     #[arg(long)]
     pub ids: String,
     /// a4, a3, letter, or WIDTHxHEIGHT in mm.
@@ -82,21 +104,23 @@ pub struct SheetArgs {
     pub page: String,
     #[arg(long)]
     pub landscape: bool,
-    /// Tag size in mm: the distance between ROI corners (the outer black square's side).
-    #[arg(long)]
+    /// Tag size in mm: the distance between ROI corners (the outer black square's side)
+    /// [range: [1, 2000]].
+    #[arg(long, value_parser = f64_in(SIDE_MM.0, SIDE_MM.1))]
     pub size_mm: Option<f64>,
-    #[arg(long, default_value_t = 10.0)]
+    /// Page margin in mm [range: [0, 1000]].
+    #[arg(long, default_value_t = 10.0, value_parser = f64_in(GAP_MM.0, GAP_MM.1))]
     pub margin_mm: f64,
-    /// Gap between neighbouring markers' quiet zones.
-    #[arg(long, default_value_t = 6.0)]
+    /// Gap between neighbouring markers' quiet zones in mm [range: [0, 1000]].
+    #[arg(long, default_value_t = 6.0, value_parser = f64_in(GAP_MM.0, GAP_MM.1))]
     pub spacing_mm: f64,
     /// Print family, ID and size under each marker.
     #[arg(long)]
     pub labels: bool,
     #[arg(long)]
     pub cut_marks: bool,
-    /// Quiet zone in cells (marker units) [default: the family's].
-    #[arg(long)]
+    /// Quiet zone in cells (marker units) [range: [0, 100]] [default: the family's].
+    #[arg(long, value_parser = f64_in(QUIET_ZONE.0, QUIET_ZONE.1))]
     pub quiet_zone: Option<f64>,
     /// Output: .pdf, or .svg (several pages are written as NAME-1.svg, NAME-2.svg, …).
     #[arg(short, long)]
@@ -106,7 +130,7 @@ pub struct SheetArgs {
 impl SheetArgs {
     pub fn run(self) -> Result<()> {
         let family = load_family(&self.family)?;
-        let ids = parse_ids(&self.ids).concerning("--ids")?;
+        let ids = parse_ids(&self.ids, MAX_IDS).concerning("--ids")?;
         let mut page = PageSize::parse(&self.page).concerning("--page")?;
         if self.landscape {
             page = page.landscape();
@@ -121,7 +145,13 @@ impl SheetArgs {
         if let Some(s) = self.size_mm {
             params.marker_side_mm = s;
         }
-        let sheet = layout_sheet(&family, &params)?;
+        let sheet = layout_sheet(&family, &params).map_err(|e| {
+            naming_options(
+                e,
+                "--ids",
+                "--size-mm, --page, --margin-mm, --spacing-mm, --quiet-zone",
+            )
+        })?;
         for w in &sheet.warnings {
             eprintln!("warning: {w}");
         }

@@ -1,7 +1,7 @@
 //! `synth`: training images with exact ground truth.
 
 use super::common::{load_family, progress_bar, write_output};
-use super::error::{bad_input, failure, Classify, Result};
+use super::error::{failure, Classify, Result};
 use anyhow::Context;
 use clap::Args;
 use std::path::PathBuf;
@@ -10,8 +10,9 @@ use std::path::PathBuf;
 pub struct SynthArgs {
     /// Built-in family name or path to a family JSON file.
     pub family: String,
-    /// Number of images.
-    #[arg(short = 'n', long, default_value_t = 32)]
+    /// Number of images [range: 1..=1000000].
+    #[arg(short = 'n', long, default_value_t = 32,
+          value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
     pub count: u64,
     /// quad: stage-1 scenes (320×320); camera: 1280×960 at 98° with the pose; patch: stage-2
     /// patches (128×128).
@@ -19,9 +20,11 @@ pub struct SynthArgs {
     pub mode: SynthMode,
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    #[arg(long)]
+    /// Image width in px [range: 16..=8192] [default: the mode's].
+    #[arg(long, value_parser = image_side())]
     pub width: Option<u32>,
-    #[arg(long)]
+    /// Image height in px [range: 16..=8192] [default: the mode's].
+    #[arg(long, value_parser = image_side())]
     pub height: Option<u32>,
     /// Exact renderings: no noise, blur, lighting or distortion.
     #[arg(long)]
@@ -29,6 +32,12 @@ pub struct SynthArgs {
     /// Output folder (created if missing).
     #[arg(short, long)]
     pub output: PathBuf,
+}
+
+/// The image sizes synthesis accepts (`SynthError::ImageSize`), checked before the output folder
+/// is made.
+fn image_side() -> clap::builder::RangedU64ValueParser<u32> {
+    clap::builder::RangedU64ValueParser::<u32>::new().range(16..=8192)
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
@@ -53,12 +62,6 @@ impl SynthArgs {
         config.height = self.height.unwrap_or(config.height);
         if self.no_augment {
             config.augment = synth::augment::AugmentRanges::none();
-        }
-        if self.count == 0 || self.count > 1_000_000 {
-            return Err(bad_input!(
-                "-n {}: between 1 and 1000000 images",
-                self.count
-            ));
         }
         std::fs::create_dir_all(&self.output)
             .with_context(|| format!("cannot create {}", self.output.display()))

@@ -1,7 +1,8 @@
 //! `train`: the learned stage-2 detector's training.
 
-use super::common::{load_family, progress_bar};
-use super::error::{bad_input, Result};
+use super::common::{load_family, positive_f64_up_to, progress_bar};
+use super::error::Result;
+use clap::builder::RangedU64ValueParser;
 use clap::{Args, ValueEnum};
 use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
@@ -13,15 +14,38 @@ pub enum Stage {
     Keypoints,
 }
 
+/// Bounds of the sizes a run may ask for. Memory grows with batch × width² (a batch of 100 000
+/// grew past 1.4 GB before its first step, a width of 100 000 aborted allocating), so each is
+/// capped well above any useful setting and refused before anything is built.
+const MAX_WIDTH: u64 = 256;
+const MAX_BATCH: u64 = 256;
+const MAX_STEPS: u64 = 10_000_000;
+const MAX_VALIDATION_PATCHES: u64 = 10_000;
+
+/// More synthesis threads than twice the cores only compete for them; 64 keeps small machines
+/// free to oversubscribe a little.
+fn max_workers() -> u64 {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get()) as u64;
+    (2 * cores).max(64)
+}
+
+fn in_range(range: std::ops::RangeInclusive<u64>) -> RangedU64ValueParser<usize> {
+    RangedU64ValueParser::<usize>::new().range(range)
+}
+
 #[derive(Args, Debug)]
 pub struct TrainArgs {
     /// Built-in family name or path to a family JSON file.
     pub family: String,
     #[arg(long, value_enum)]
     pub stage: Stage,
-    #[arg(long, default_value_t = TrainConfig::default().steps)]
+    /// Optimiser steps [range: 1..=10000000].
+    #[arg(long, default_value_t = TrainConfig::default().steps,
+          value_parser = clap::value_parser!(u64).range(1..=MAX_STEPS))]
     pub steps: u64,
-    #[arg(long, default_value_t = TrainConfig::default().batch)]
+    /// Patches per step [range: 1..=256].
+    #[arg(long, default_value_t = TrainConfig::default().batch,
+          value_parser = in_range(1..=MAX_BATCH))]
     pub batch: usize,
     /// Output folder (checkpoint, model, report) [default: runs/FAMILY-keypoints].
     #[arg(long)]
@@ -29,22 +53,33 @@ pub struct TrainArgs {
     /// Continue from the output folder's checkpoint.
     #[arg(long)]
     pub resume: bool,
-    /// Channels of the network's widest layers.
-    #[arg(long, default_value_t = TrainConfig::default().width)]
+    /// Channels of the network's widest layers [range: 8..=256].
+    #[arg(long, default_value_t = TrainConfig::default().width,
+          value_parser = in_range(8..=MAX_WIDTH))]
     pub width: usize,
-    /// Adam's learning rate (it falls to a tenth over the last quarter of the steps).
-    #[arg(long, default_value_t = TrainConfig::default().learning_rate)]
+    /// Adam's learning rate (it falls to a tenth over the last quarter of the steps)
+    /// [range: (0, 1]].
+    #[arg(long, default_value_t = TrainConfig::default().learning_rate,
+          value_parser = positive_f64_up_to(1.0))]
     pub learning_rate: f64,
     #[arg(long, default_value_t = TrainConfig::default().seed)]
     pub seed: u64,
-    #[arg(long, default_value_t = TrainConfig::default().checkpoint_every)]
+    /// Steps between checkpoints [range: 1..].
+    #[arg(long, default_value_t = TrainConfig::default().checkpoint_every,
+          value_parser = clap::value_parser!(u64).range(1..))]
     pub checkpoint_every: u64,
-    #[arg(long, default_value_t = TrainConfig::default().validate_every)]
+    /// Steps between validations [range: 1..].
+    #[arg(long, default_value_t = TrainConfig::default().validate_every,
+          value_parser = clap::value_parser!(u64).range(1..))]
     pub validate_every: u64,
-    #[arg(long, default_value_t = TrainConfig::default().validation_patches)]
+    /// Patches synthesised once for validation [range: 1..=10000].
+    #[arg(long, default_value_t = TrainConfig::default().validation_patches,
+          value_parser = in_range(1..=MAX_VALIDATION_PATCHES))]
     pub validation_patches: usize,
-    /// Threads synthesising patches ahead of the optimiser.
-    #[arg(long, default_value_t = TrainConfig::default().workers)]
+    /// Threads synthesising patches ahead of the optimiser [range: 1..=64, or up to twice the
+    /// cores where that is more].
+    #[arg(long, default_value_t = TrainConfig::default().workers,
+          value_parser = in_range(1..=max_workers()))]
     pub workers: usize,
 }
 
@@ -52,18 +87,6 @@ impl TrainArgs {
     pub fn run(self) -> Result<()> {
         let Stage::Keypoints = self.stage;
         let family = load_family(&self.family)?;
-        if self.steps == 0
-            || self.batch == 0
-            || self.width < 8
-            || self.checkpoint_every == 0
-            || self.validate_every == 0
-            || !(self.learning_rate > 0.0 && self.learning_rate.is_finite())
-        {
-            return Err(bad_input!(
-                "--steps, --batch, --checkpoint-every and --validate-every must be at least 1, \
-                 --width at least 8 and --learning-rate a positive number"
-            ));
-        }
         let config = TrainConfig {
             steps: self.steps,
             batch: self.batch,

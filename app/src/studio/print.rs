@@ -6,7 +6,7 @@ use super::Studio;
 use egui::Ui;
 use serde::{Deserialize, Serialize};
 use tagsmith::family::Family;
-use tagsmith::render::sheet::{layout_sheet, parse_ids, PageSize, Sheet, SheetParams};
+use tagsmith::render::sheet::{layout_sheet, parse_ids, PageSize, Sheet, SheetParams, MAX_IDS};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Page {
@@ -56,7 +56,7 @@ pub struct PrintState {
 impl PrintSettings {
     /// The core's sheet parameters, or what is wrong with the setup.
     pub fn params(&self, family: &Family) -> Result<SheetParams, String> {
-        let ids = parse_ids(&self.ids).map_err(|e| format!("IDs: {e}"))?;
+        let ids = parse_ids(&self.ids, MAX_IDS).map_err(|e| format!("IDs: {e}"))?;
         if ids.is_empty() {
             return Err("IDs: list at least one ID, e.g. 0-11 or 3,5,8".into());
         }

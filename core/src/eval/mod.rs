@@ -51,4 +51,16 @@ pub enum EvalError {
     Synth(#[from] crate::synth::SynthError),
     #[error("detections for {file:?}, which is not an image of this set")]
     UnknownImage { file: String },
+    #[error("a set of {images} images is more than {max}; lower the images per cell")]
+    TooLarge { images: u64, max: u64 },
+    /// A set manifest that loads as JSON but cannot be scored: `field` is its JSON path.
+    #[error("{path}: {field}: {message}")]
+    BadSet {
+        path: PathBuf,
+        field: String,
+        message: String,
+    },
+    /// A detections file that cannot be scored; the caller puts the file's name in front.
+    #[error("{field}: {message}")]
+    BadDetections { field: String, message: String },
 }

@@ -223,11 +223,48 @@ fn by<K: Copy + PartialOrd + Into<f64>>(
     out
 }
 
+/// What scoring relies on in a detections file: each image listed once (a second list for the
+/// same image was silently dropped) and each pose's rotation a rotation (a zero matrix scored as
+/// a finite error).
+fn check_detections(detections: &DetectionsFile) -> Result<(), EvalError> {
+    let bad = |field: String, message: String| EvalError::BadDetections { field, message };
+    let mut seen = std::collections::HashSet::new();
+    for (i, img) in detections.images.iter().enumerate() {
+        if !seen.insert(img.file.as_str()) {
+            return Err(bad(
+                format!("images[{i}].file"),
+                format!("{:?} is listed twice", img.file),
+            ));
+        }
+        for (j, d) in img.detections.iter().enumerate() {
+            let Some(pose) = &d.pose else { continue };
+            let field = format!("images[{i}].detections[{j}].pose");
+            let r = Matrix3::from_fn(|row, col| pose.rotation[row][col]);
+            // Loose enough for rotations written with a few decimals.
+            let orthonormal = (r.transpose() * r - Matrix3::identity()).amax() < 1e-3;
+            if !(orthonormal && (r.determinant() - 1.0).abs() < 1e-3) {
+                return Err(bad(
+                    format!("{field}.rotation"),
+                    "is not a rotation matrix (orthonormal, determinant 1)".into(),
+                ));
+            }
+            if !pose.translation_m.iter().all(|v| v.is_finite()) {
+                return Err(bad(
+                    format!("{field}.translation_m"),
+                    "must be finite numbers".into(),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
 pub fn score(
     set: &BenchmarkSet,
     family: Option<&Family>,
     detections: &DetectionsFile,
 ) -> Result<Report, EvalError> {
+    check_detections(detections)?;
     let by_file: HashMap<&str, &crate::detect::ImageDetections> = detections
         .images
         .iter()

@@ -169,7 +169,24 @@ fn plan(p: &SetParams) -> Vec<(Group, SynthConfig, u64)> {
     out
 }
 
+/// The most images one set may hold: the protocol at 100 images per cell and the sweeps. The plan
+/// is built in memory before anything renders, and `--per-cell 4294967295` aborted allocating it.
+pub const MAX_SET_IMAGES: u64 = 20_000;
+
+impl SetParams {
+    /// The number of images the set will hold, counted without building it.
+    pub fn image_count(&self) -> u64 {
+        let cells = (DISTANCES_CM.len() * ANGLES_DEG.len()) as u64;
+        cells * self.per_cell as u64
+            + self.jitter_poses as u64 * self.jitter_renders as u64
+            + NOISE_SIGMAS.len() as u64 * self.per_noise_level as u64
+            + BLUR_LENGTHS.len() as u64 * self.blur_directions as u64
+    }
+}
+
 /// Renders the set into `dir/images/` and writes `dir/set.json` (the manifest with the truth).
+/// The parameters are checked before the folder is made; if rendering or writing fails, the
+/// folders this call created are removed (folders that were there before are left).
 pub fn generate(
     family: &Family,
     params: &SetParams,
@@ -180,11 +197,25 @@ pub fn generate(
             side_m: params.side_m,
         });
     }
+    let images = params.image_count();
+    if images > MAX_SET_IMAGES {
+        return Err(EvalError::TooLarge {
+            images,
+            max: MAX_SET_IMAGES,
+        });
+    }
     let images_dir = dir.join("images");
-    std::fs::create_dir_all(&images_dir).map_err(|source| EvalError::Write {
-        path: images_dir,
-        source,
-    })?;
+    let created =
+        crate::io::CreatedDir::create(&images_dir).map_err(|source| EvalError::Write {
+            path: images_dir,
+            source,
+        })?;
+    let set = render_set(family, params, dir)?;
+    created.keep();
+    Ok(set)
+}
+
+fn render_set(family: &Family, params: &SetParams, dir: &Path) -> Result<BenchmarkSet, EvalError> {
     let plan = plan(params);
     let images = plan
         .par_iter()
@@ -222,13 +253,39 @@ pub fn generate(
     Ok(set)
 }
 
+/// Reads `dir/set.json` and checks what scoring relies on: a positive marker side, a camera that
+/// projects, and each image listed once.
 pub fn load(dir: &Path) -> Result<BenchmarkSet, EvalError> {
     let path = dir.join("set.json");
     let text = match std::fs::read_to_string(&path) {
         Ok(text) => text,
         Err(source) => return Err(EvalError::Read { path, source }),
     };
-    serde_json::from_str(&text).map_err(|source| EvalError::Json { path, source })
+    let set: BenchmarkSet = serde_json::from_str(&text).map_err(|source| EvalError::Json {
+        path: path.clone(),
+        source,
+    })?;
+    let bad = |field: &str, message: String| EvalError::BadSet {
+        path: path.clone(),
+        field: field.into(),
+        message,
+    };
+    if !(set.side_m.is_finite() && set.side_m > 0.0 && set.side_m <= 1.0) {
+        return Err(bad("side_m", format!("{} m must be in (0, 1]", set.side_m)));
+    }
+    if let Err(e) = set.camera.validate() {
+        return Err(bad("camera", e.to_string()));
+    }
+    let mut seen = std::collections::HashSet::new();
+    for (i, img) in set.images.iter().enumerate() {
+        if !seen.insert(img.file.as_str()) {
+            return Err(bad(
+                &format!("images[{i}].file"),
+                format!("{:?} is listed twice", img.file),
+            ));
+        }
+    }
+    Ok(set)
 }
 
 impl BenchImage {

@@ -17,6 +17,7 @@ pub use error::{FamilyError, Problem};
 pub use geometry::{Extent, Keypoint, Rotation};
 pub use load::{from_json_str, load_file, schema_json, to_json_string};
 pub use spec::FamilySpec;
+pub use validate::{name_problem, MAX_MARKER_SIDE_MM, MIN_MARKER_SIDE_MM};
 
 use crate::codebook::{Codebook, GenerateParams};
 use crate::color::Rgb;

@@ -26,6 +26,9 @@ const MAX_SLOTS: u32 = 512;
 const MAX_CODES: usize = 100_000;
 /// Coordinates beyond this many marker units are certainly a typo.
 const MAX_COORD: f64 = 1000.0;
+/// Bounds of `print.marker_side_mm`, in mm.
+pub const MIN_MARKER_SIDE_MM: f64 = 1.0;
+pub const MAX_MARKER_SIDE_MM: f64 = 2000.0;
 
 /// Longest `title`, in characters: it is printed on one line of every sheet's header, where about
 /// 100 characters of its 3.5 mm type fill the width of an A4 page (the PDF took seconds to lay out
@@ -166,20 +169,27 @@ pub(super) fn build(spec: FamilySpec) -> Result<Family, FamilyError> {
 }
 
 fn check_name(name: &str, problems: &mut Vec<Problem>) {
+    if let Some(why) = name_problem(name) {
+        problems.push(Problem::new("name", why));
+    }
+}
+
+/// What is wrong with a family name, if anything. Names become file names (`NAME.json`,
+/// `runs/NAME-keypoints`), so besides the characters allowed, a leading '.' is refused: `.` and
+/// `..` are folders and `.NAME` a hidden file.
+pub fn name_problem(name: &str) -> Option<String> {
     let ok = !name.is_empty()
         && name.len() <= 64
+        && !name.starts_with('.')
         && name
             .chars()
             .all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c));
-    if !ok {
-        problems.push(Problem::new(
-            "name",
-            format!(
-                "{} must be 1–64 letters, digits, '-', '_' or '.'",
-                quoted(name)
-            ),
-        ));
-    }
+    (!ok).then(|| {
+        format!(
+            "{} must be 1–64 letters, digits, '-', '_' or '.', not starting with '.'",
+            quoted(name)
+        )
+    })
 }
 
 fn check_text(path: &str, text: &str, max: usize, problems: &mut Vec<Problem>) {
@@ -647,11 +657,13 @@ fn check_overlaps(keypoints: &[Keypoint], first_extra: usize, problems: &mut Vec
 }
 
 fn check_print(spec: &FamilySpec, problems: &mut Vec<Problem>) {
+    // A printable marker: below 1 mm no printer draws the cells, and a denormal side (5e-324)
+    // turned into a NaN-sized image further on; above 2 m is no sheet or print job.
     let s = spec.print.marker_side_mm;
-    if !(s.is_finite() && s > 0.0 && s <= 10_000.0) {
+    if !(s.is_finite() && (MIN_MARKER_SIDE_MM..=MAX_MARKER_SIDE_MM).contains(&s)) {
         problems.push(Problem::new(
             "print.marker_side_mm",
-            format!("{s} must be in (0, 10000] mm"),
+            format!("{s} must be in [{MIN_MARKER_SIDE_MM}, {MAX_MARKER_SIDE_MM}] mm"),
         ));
     }
 }

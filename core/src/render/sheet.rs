@@ -20,6 +20,8 @@ pub enum SheetError {
     Backwards { range: String },
     #[error("range {range:?} is too long")]
     TooLong { range: String },
+    #[error("more than {max} IDs; print them in several sheets")]
+    TooMany { max: usize },
     #[error("no IDs given")]
     NoIds,
 }
@@ -125,8 +127,13 @@ const LABEL_MM: f64 = 4.5;
 const FONT: &str = "DejaVu Sans";
 const SCALE_BAR_MM: f64 = 100.0;
 
-/// Parses `0-47`, `3,5,9-12` into IDs.
-pub fn parse_ids(text: &str) -> Result<Vec<usize>, SheetError> {
+/// The most markers one sheet command lays out: every built-in family fits, and laying out more
+/// (2000 copies of `0-586` took minutes) is a typing mistake rather than a print job.
+pub const MAX_IDS: usize = 10_000;
+
+/// Parses `0-47`, `3,5,9-12` into IDs, at most `max` of them; a list that would exceed `max` is
+/// refused as soon as a range would pass it, before the range is expanded.
+pub fn parse_ids(text: &str, max: usize) -> Result<Vec<usize>, SheetError> {
     let mut ids = Vec::new();
     for part in text.split(',').map(str::trim).filter(|p| !p.is_empty()) {
         let num = |s: &str| {
@@ -145,9 +152,17 @@ pub fn parse_ids(text: &str) -> Result<Vec<usize>, SheetError> {
                 if b - a > 1_000_000 {
                     return Err(SheetError::TooLong { range: range() });
                 }
+                if ids.len() + (b - a) >= max {
+                    return Err(SheetError::TooMany { max });
+                }
                 ids.extend(a..=b);
             }
-            None => ids.push(num(part)?),
+            None => {
+                if ids.len() >= max {
+                    return Err(SheetError::TooMany { max });
+                }
+                ids.push(num(part)?)
+            }
         }
     }
     if ids.is_empty() {
@@ -405,18 +420,30 @@ mod tests {
 
     #[test]
     fn id_lists_and_ranges() {
-        assert_eq!(parse_ids("0-3,7, 9").unwrap(), vec![0, 1, 2, 3, 7, 9]);
         assert_eq!(
-            parse_ids("1, 5-2"),
+            parse_ids("0-3,7, 9", MAX_IDS).unwrap(),
+            vec![0, 1, 2, 3, 7, 9]
+        );
+        assert_eq!(
+            parse_ids("1, 5-2", MAX_IDS),
             Err(SheetError::Backwards {
                 range: "5-2".into()
             })
         );
         assert_eq!(
-            parse_ids("x").unwrap_err().to_string(),
+            parse_ids("x", MAX_IDS).unwrap_err().to_string(),
             r#""x" in "x" is not an ID"#
         );
-        assert_eq!(parse_ids(""), Err(SheetError::NoIds));
+        assert_eq!(parse_ids("", MAX_IDS), Err(SheetError::NoIds));
+        // The bound counts every ID a range stands for, and is reached exactly.
+        assert_eq!(parse_ids("0-4", 5).unwrap().len(), 5);
+        assert_eq!(parse_ids("0-5", 5), Err(SheetError::TooMany { max: 5 }));
+        assert_eq!(parse_ids("0-4,7", 5), Err(SheetError::TooMany { max: 5 }));
+        let huge = vec!["0-586"; 2000].join(",");
+        assert_eq!(
+            parse_ids(&huge, MAX_IDS),
+            Err(SheetError::TooMany { max: MAX_IDS })
+        );
     }
 
     #[test]

@@ -1,0 +1,397 @@
+//! End-to-end: sizes and counts from the command line have documented ranges, and bad input
+//! exits 2 with a message that names the option, file or field at fault.
+
+mod common;
+use common::*;
+use serde_json::{json, Value};
+use std::path::Path;
+
+/// Runs `args` in `dir` and checks it is refused as bad input with every one of `names` (the
+/// option and its range) in the message.
+fn refused(dir: &Path, args: &[&str], names: &[&str]) -> Run {
+    let run = tagsmith(dir, args);
+    assert_eq!(run.code, 2, "{args:?}\nstderr: {}", run.stderr);
+    for name in names {
+        assert!(
+            run.stderr.contains(name),
+            "{args:?}: {name:?} not in {}",
+            run.stderr
+        );
+    }
+    run
+}
+
+#[test]
+fn out_of_range_sizes_are_refused_naming_the_option_and_its_range() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let train = |opt: &'static str, v: &'static str| {
+        vec![
+            "train",
+            "apriltag-16h5",
+            "--stage",
+            "keypoints",
+            opt,
+            v,
+            "--out",
+            "r",
+        ]
+    };
+    for (args, names) in [
+        (train("--width", "100000"), ["--width", "8..=256"]),
+        (train("--width", "4"), ["--width", "8..=256"]),
+        (train("--batch", "100000"), ["--batch", "1..=256"]),
+        (train("--steps", "0"), ["--steps", "1..=10000000"]),
+        (
+            train("--validation-patches", "0"),
+            ["--validation-patches", "1..=10000"],
+        ),
+        (train("--workers", "0"), ["--workers", "1..="]),
+        (train("--workers", "100000"), ["--workers", "1..="]),
+        (
+            train("--checkpoint-every", "0"),
+            ["--checkpoint-every", "1.."],
+        ),
+        (train("--validate-every", "0"), ["--validate-every", "1.."]),
+        (train("--learning-rate", "5"), ["--learning-rate", "(0, 1]"]),
+        (
+            vec![
+                "detect",
+                "x.png",
+                "--family",
+                "apriltag-16h5",
+                "--roi",
+                "0,0,1,0,1,1,0,1",
+                "--iterations",
+                "1000000",
+            ],
+            ["--iterations", "1..=10"],
+        ),
+        (
+            vec!["detect-set", "set", "-o", "d.json", "--iterations", "0"],
+            ["--iterations", "1..=10"],
+        ),
+        (
+            vec!["synth", "apriltag-16h5", "-n", "2000000", "-o", "s"],
+            ["--count", "1..=1000000"],
+        ),
+        (
+            vec!["synth", "apriltag-16h5", "--width", "100000", "-o", "s"],
+            ["--width", "16..=8192"],
+        ),
+        (
+            vec![
+                "render",
+                "apriltag-16h5",
+                "--id",
+                "0",
+                "--px",
+                "100000",
+                "-o",
+                "m.png",
+            ],
+            ["--px", "1..=20000"],
+        ),
+        (
+            vec![
+                "render",
+                "apriltag-16h5",
+                "--id",
+                "0",
+                "--size-mm",
+                "1e9",
+                "-o",
+                "m.svg",
+            ],
+            ["--size-mm", "[1, 2000]"],
+        ),
+        (
+            vec![
+                "sheet",
+                "apriltag-16h5",
+                "--ids",
+                "0",
+                "--size-mm",
+                "0",
+                "-o",
+                "s.pdf",
+            ],
+            ["--size-mm", "[1, 2000]"],
+        ),
+        (
+            vec![
+                "codebook",
+                "generate",
+                "aruco-4x4_50",
+                "--min-distance",
+                "3",
+                "--count",
+                "0",
+                "-o",
+                "c.json",
+            ],
+            ["--count", "1..=100000"],
+        ),
+        (
+            vec![
+                "codebook",
+                "generate",
+                "aruco-4x4_50",
+                "--min-distance",
+                "3",
+                "--max-candidates",
+                "0",
+                "-o",
+                "c.json",
+            ],
+            ["--max-candidates", "1..="],
+        ),
+        (
+            vec![
+                "eval",
+                "generate",
+                "apriltag-16h5",
+                "--per-cell",
+                "4294967295",
+                "-o",
+                "set",
+            ],
+            ["--per-cell", "1..=100"],
+        ),
+        (
+            vec![
+                "eval",
+                "generate",
+                "apriltag-16h5",
+                "--side-mm",
+                "0",
+                "-o",
+                "set",
+            ],
+            ["--side-mm", "[1, 1000]"],
+        ),
+    ] {
+        refused(d, &args, &names);
+    }
+    // Nothing was written, in particular no empty set folder.
+    assert_eq!(std::fs::read_dir(d).unwrap().count(), 0);
+}
+
+#[test]
+fn help_documents_the_ranges() {
+    let dir = tempfile::tempdir().unwrap();
+    for (cmd, ranges) in [
+        (
+            vec!["train", "--help"],
+            vec!["8..=256", "1..=256", "1..=10000000", "1..=10000"],
+        ),
+        (vec!["detect", "--help"], vec!["1..=10"]),
+        (vec!["detect-set", "--help"], vec!["1..=10"]),
+        (
+            vec!["eval", "generate", "--help"],
+            vec!["1..=100", "[1, 1000]"],
+        ),
+        (vec!["synth", "--help"], vec!["1..=1000000", "16..=8192"]),
+        (vec!["render", "--help"], vec!["1..=20000", "[1, 2000]"]),
+        (vec!["sheet", "--help"], vec!["10000", "[1, 2000]"]),
+        (vec!["codebook", "generate", "--help"], vec!["1..=100000"]),
+    ] {
+        let run = tagsmith(dir.path(), &cmd);
+        run.ok();
+        for r in ranges {
+            assert!(run.stdout.contains(r), "{cmd:?}: {r} not in {}", run.stdout);
+        }
+    }
+}
+
+#[test]
+fn a_huge_id_list_is_refused_before_it_is_expanded() {
+    let dir = tempfile::tempdir().unwrap();
+    let ids = vec!["0-586"; 2000].join(",");
+    let started = std::time::Instant::now();
+    refused(
+        dir.path(),
+        &["sheet", "apriltag-36h11", "--ids", &ids, "-o", "s.pdf"],
+        &["--ids", "10000"],
+    );
+    assert!(started.elapsed().as_secs() < 10, "{:?}", started.elapsed());
+    assert!(!dir.path().join("s.pdf").exists());
+}
+
+#[test]
+fn codebook_generate_names_its_bad_options() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = refused(
+        dir.path(),
+        &[
+            "codebook",
+            "generate",
+            "aruco-4x4_50",
+            "--min-distance",
+            "3",
+            "--max-candidates",
+            "1000",
+            "--name",
+            "../../evil",
+            "-o",
+            "c.json",
+        ],
+        &["--name", "../../evil"],
+    );
+    assert!(!run.stderr.contains("panicked"), "{}", run.stderr);
+    assert!(!dir.path().join("c.json").exists());
+    for name in ["..", ".hidden"] {
+        refused(
+            dir.path(),
+            &[
+                "codebook",
+                "generate",
+                "aruco-4x4_50",
+                "--min-distance",
+                "3",
+                "--max-candidates",
+                "1000",
+                "--name",
+                name,
+                "-o",
+                "c.json",
+            ],
+            &["--name"],
+        );
+    }
+}
+
+#[test]
+fn out_of_range_ids_and_sizes_name_their_option() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    refused(
+        d,
+        &["render", "apriltag-16h5", "--id", "30", "-o", "x.svg"],
+        &["--id", "ID 30"],
+    );
+    refused(
+        d,
+        &["sheet", "apriltag-16h5", "--ids", "0,31", "-o", "x.pdf"],
+        &["--ids", "ID 31"],
+    );
+    refused(
+        d,
+        &[
+            "sheet",
+            "apriltag-16h5",
+            "--ids",
+            "0",
+            "--size-mm",
+            "1000",
+            "-o",
+            "x.pdf",
+        ],
+        &["--size-mm", "does not fit"],
+    );
+}
+
+#[test]
+fn a_tiny_marker_side_in_a_family_file_names_the_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(workspace().join("families/apriltag-16h5.json")).unwrap();
+    let mut f: Value = serde_json::from_str(&text).unwrap();
+    f["print"]["marker_side_mm"] = json!(5e-324);
+    std::fs::write(dir.path().join("f.json"), f.to_string()).unwrap();
+    for args in [
+        vec!["render", "f.json", "--id", "0", "-o", "m.png"],
+        vec!["validate", "f.json"],
+    ] {
+        let run = refused(dir.path(), &args, &["print.marker_side_mm", "2000"]);
+        assert!(!run.stderr.contains("NaN"), "{}", run.stderr);
+    }
+}
+
+/// A one-image benchmark set (from `synth --mode camera`) and its oracle detections, as JSON.
+fn small_set(dir: &Path) -> (Value, Value) {
+    tagsmith(
+        dir,
+        &[
+            "synth",
+            "apriltag-16h5",
+            "-n",
+            "1",
+            "--mode",
+            "camera",
+            "-o",
+            "s",
+        ],
+    )
+    .ok();
+    let truth: Value =
+        serde_json::from_slice(&std::fs::read(dir.join("s/000000.json")).unwrap()).unwrap();
+    std::fs::create_dir_all(dir.join("set/images")).unwrap();
+    std::fs::copy(dir.join("s/000000.png"), dir.join("set/images/000000.png")).unwrap();
+    let set = json!({
+        "family": "apriltag-16h5",
+        "side_m": truth["markers"][0]["pose"]["side_m"].as_f64().unwrap_or(0.05),
+        "camera": truth["camera"],
+        "seed": 0,
+        "images": [{
+            "file": "images/000000.png",
+            "group": {"kind": "protocol", "distance_cm": 30, "angle_deg": 0, "normal": true},
+            "truth": truth,
+        }],
+    });
+    std::fs::write(dir.join("set/set.json"), set.to_string()).unwrap();
+    tagsmith(dir, &["eval", "oracle", "set", "-o", "d.json"]).ok();
+    let detections: Value =
+        serde_json::from_slice(&std::fs::read(dir.join("d.json")).unwrap()).unwrap();
+    (set, detections)
+}
+
+/// Damages one field of a JSON file.
+type Breaks = fn(&mut Value);
+
+#[test]
+fn eval_score_refuses_sets_and_detections_that_cannot_be_scored() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (set, detections) = small_set(d);
+    tagsmith(d, &["eval", "score", "set", "d.json", "-o", "report"]).ok();
+
+    let write_set = |s: &Value| std::fs::write(d.join("set/set.json"), s.to_string()).unwrap();
+    let broken_sets: [(&str, Breaks); 5] = [
+        ("family", |s| s["family"] = json!("no-such-family")),
+        ("side_m", |s| s["side_m"] = json!(0.0)),
+        ("side_m", |s| s["side_m"] = json!(-0.05)),
+        ("camera", |s| s["camera"]["fx"] = json!(0.0)),
+        ("images[1].file", |s| {
+            let first = s["images"][0].clone();
+            s["images"].as_array_mut().unwrap().push(first);
+        }),
+    ];
+    for (field, breaks) in broken_sets {
+        let mut s = set.clone();
+        breaks(&mut s);
+        write_set(&s);
+        refused(d, &["eval", "score", "set", "d.json"], &["set.json", field]);
+    }
+    write_set(&set);
+
+    let broken_detections: [(&str, Breaks); 2] = [
+        ("rotation", |f| {
+            f["images"][0]["detections"][0]["pose"]["rotation"] =
+                json!([[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]);
+        }),
+        ("images[1].file", |f| {
+            let first = f["images"][0].clone();
+            f["images"].as_array_mut().unwrap().push(first);
+        }),
+    ];
+    for (field, breaks) in broken_detections {
+        let mut f = detections.clone();
+        breaks(&mut f);
+        std::fs::write(d.join("bad.json"), f.to_string()).unwrap();
+        refused(
+            d,
+            &["eval", "score", "set", "bad.json"],
+            &["bad.json", field],
+        );
+    }
+}
