@@ -395,3 +395,33 @@ fn eval_score_refuses_sets_and_detections_that_cannot_be_scored() {
         );
     }
 }
+
+/// A set of a design that is no built-in carries its family file, so it still scores.
+#[test]
+fn eval_score_reads_the_family_kept_with_the_set() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (mut set, _) = small_set(d);
+    let mut spec = tagsmith::builtin::get("apriltag-16h5")
+        .unwrap()
+        .unwrap()
+        .spec()
+        .clone();
+    spec.name = "my-design".into();
+    std::fs::write(
+        d.join("set/family.json"),
+        tagsmith::family::to_json_string(&spec),
+    )
+    .unwrap();
+    set["family"] = json!("my-design");
+    std::fs::write(d.join("set/set.json"), set.to_string()).unwrap();
+    tagsmith(d, &["eval", "score", "set", "d.json", "-o", "report"]).ok();
+    // A kept family that is not the set's is refused.
+    set["family"] = json!("other-design");
+    std::fs::write(d.join("set/set.json"), set.to_string()).unwrap();
+    refused(
+        d,
+        &["eval", "score", "set", "d.json"],
+        &["family.json", "my-design"],
+    );
+}

@@ -56,6 +56,9 @@ impl GenerateSetArgs {
         };
         let started = std::time::Instant::now();
         let s = set::generate(&family, &params, &self.output)?;
+        // The set carries its family, so a set of a design that is no built-in scores anywhere.
+        let spec = tagsmith::family::to_json_string(family.spec());
+        write_output(&self.output.join(SET_FAMILY_FILE), spec.as_bytes())?;
         println!(
             "wrote {} images of {} ({} mm) to {} in {:.1} s",
             s.images.len(),
@@ -67,6 +70,9 @@ impl GenerateSetArgs {
         Ok(())
     }
 }
+
+/// The family file `eval generate` writes beside `set.json`.
+const SET_FAMILY_FILE: &str = "family.json";
 
 #[derive(Args, Debug)]
 pub struct ScoreArgs {
@@ -90,9 +96,22 @@ impl ScoreArgs {
             serde_json::from_str(&text).map_err(|e| bad_input!("{}: {e}", detections.display()))?;
         // A set names the family its truth was drawn from; one that does not load is a broken
         // manifest, not a reason to score without the family's geometry.
-        let family = load_family(&s.family).map_err(|e| {
-            e.concerning(format_args!("{}: family", dir.join("set.json").display()))
-        })?;
+        let kept = dir.join(SET_FAMILY_FILE);
+        let family = if kept.exists() {
+            load_family(&kept.display().to_string())?
+        } else {
+            load_family(&s.family).map_err(|e| {
+                e.concerning(format_args!("{}: family", dir.join("set.json").display()))
+            })?
+        };
+        if family.name() != s.family {
+            return Err(bad_input!(
+                "{}: family {:?} is not the set's {:?}",
+                kept.display(),
+                family.name(),
+                s.family
+            ));
+        }
         let report = score::score(&s, Some(&family), &file).concerning(detections.display())?;
         let slug: String = file
             .detector
