@@ -34,14 +34,6 @@ pub enum SynthError {
     DegeneratePlacement { id: usize },
 }
 
-/// `train/` still returns plain messages; this keeps its `?` on [`synthesize`] working until it
-/// has typed errors of its own.
-impl From<SynthError> for String {
-    fn from(e: SynthError) -> Self {
-        e.to_string()
-    }
-}
-
 /// A float image, 0 = black, 1 = white; pixel centres at integer coordinates.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Canvas {
