@@ -28,7 +28,20 @@ fn svg_options() -> &'static usvg::Options<'static> {
 
 /// Parses an SVG produced by this crate (with the embedded font available for its text).
 pub fn parse_svg(svg: &str) -> Result<usvg::Tree, RenderError> {
-    usvg::Tree::from_str(svg, svg_options()).map_err(|e| RenderError::Encode(format!("SVG: {e}")))
+    usvg::Tree::from_str(svg, svg_options()).map_err(|e| match e {
+        // usvg reads at most a million elements (its guard against hostile files): a page of many
+        // markers at the family limits can pass it. That is a request too large to print on one
+        // page, not a failure to encode.
+        usvg::Error::ElementsLimitReached
+        | usvg::Error::ParsingFailed(usvg::roxmltree::Error::NodesLimitReached) => {
+            RenderError::Layout(
+                "the page would draw more than 1 000 000 shapes; print fewer markers per page \
+                 (--ids, a larger --size-mm) or a family with simpler patterns"
+                    .into(),
+            )
+        }
+        e => RenderError::Encode(format!("SVG: {e}")),
+    })
 }
 
 pub fn sheet_pdf(sheet: &Sheet) -> Result<Vec<u8>, RenderError> {
@@ -74,4 +87,20 @@ pub fn sheet_pdf(sheet: &Sheet) -> Result<Vec<u8>, RenderError> {
         pdf.extend(chunk);
     }
     Ok(pdf.finish())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_page_past_the_svg_element_limit_is_a_layout_error() {
+        let shapes = "<rect width=\"1\" height=\"1\"/>".repeat(1_000_100);
+        let svg = format!(
+            "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"10\" height=\"10\">{shapes}</svg>"
+        );
+        let err = parse_svg(&svg).unwrap_err();
+        assert!(matches!(err, RenderError::Layout(_)), "{err}");
+        assert!(err.to_string().contains("fewer markers"), "{err}");
+    }
 }
