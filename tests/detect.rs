@@ -276,6 +276,20 @@ fn training_resumes_after_kill_9() {
 /// One marker of the sample photograph (see assets/samples/README.md), clockwise.
 const SWARMATHON_ROI: &str = "329.95,442.66,286.03,446.36,285.24,402.35,328.57,398.87";
 
+/// `detect IMAGE` with the sample tag's family and ROI, then `extra`.
+fn detect_swarmathon_tag<'a>(image: &'a str, extra: &[&'a str]) -> Vec<&'a str> {
+    let mut args = vec![
+        "detect",
+        image,
+        "--family",
+        "apriltag-36h11",
+        "--roi",
+        SWARMATHON_ROI,
+    ];
+    args.extend_from_slice(extra);
+    args
+}
+
 fn sample(name: &str) -> std::path::PathBuf {
     std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../assets/samples")
@@ -294,17 +308,7 @@ fn a_jpeg_photograph_decodes_as_the_png_of_the_same_pixels() {
     )
     .unwrap();
     let detect = |image: &str| {
-        let run = tagsmith(
-            dir.path(),
-            &[
-                "detect",
-                image,
-                "--family",
-                "apriltag-36h11",
-                "--roi",
-                SWARMATHON_ROI,
-            ],
-        );
+        let run = tagsmith(dir.path(), &detect_swarmathon_tag(image, &[]));
         run.ok();
         serde_json::from_str::<serde_json::Value>(&run.stdout).unwrap()
     };
@@ -393,17 +397,7 @@ fn oversized_images_are_refused_before_decoding_in_bounded_time_and_memory() {
     }
     for (file, size) in [("claims.png", "40000×40000"), ("huge.png", "20000×20000")] {
         let started = std::time::Instant::now();
-        let (run, peak_mb) = tagsmith_measured(
-            dir.path(),
-            &[
-                "detect",
-                file,
-                "--family",
-                "apriltag-36h11",
-                "--roi",
-                SWARMATHON_ROI,
-            ],
-        );
+        let (run, peak_mb) = tagsmith_measured(dir.path(), &detect_swarmathon_tag(file, &[]));
         let seconds = started.elapsed().as_secs_f64();
         assert_eq!(run.code, 2, "{file}: {}", run.stderr);
         assert!(run.stderr.contains(size), "{file}: {}", run.stderr);
@@ -421,16 +415,7 @@ fn oversized_images_are_refused_before_decoding_in_bounded_time_and_memory() {
     // The limit can be raised: then the header-only file is refused as truncated instead.
     let run = tagsmith(
         dir.path(),
-        &[
-            "detect",
-            "claims.png",
-            "--family",
-            "apriltag-36h11",
-            "--roi",
-            SWARMATHON_ROI,
-            "--max-pixels",
-            "2000000000",
-        ],
+        &detect_swarmathon_tag("claims.png", &["--max-pixels", "2000000000"]),
     );
     assert_eq!(run.code, 2, "{}", run.stderr);
     assert!(
@@ -447,17 +432,7 @@ fn a_truncated_or_non_image_file_is_bad_input_named_once() {
     std::fs::write(dir.path().join("cut.jpg"), &jpeg[..jpeg.len() / 3]).unwrap();
     std::fs::write(dir.path().join("notes.png"), b"not an image at all").unwrap();
     for file in ["cut.jpg", "notes.png"] {
-        let run = tagsmith(
-            dir.path(),
-            &[
-                "detect",
-                file,
-                "--family",
-                "apriltag-36h11",
-                "--roi",
-                SWARMATHON_ROI,
-            ],
-        );
+        let run = tagsmith(dir.path(), &detect_swarmathon_tag(file, &[]));
         assert_eq!(run.code, 2, "{file}: {}", run.stderr);
         assert_eq!(run.stderr.matches(file).count(), 1, "{}", run.stderr);
     }

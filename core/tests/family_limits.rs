@@ -1,6 +1,8 @@
 //! Inputs from a fuzz campaign against `validate`, `render` and `sheet` that crashed, hung or ate
 //! memory: each is now refused by validation with the field named, and quickly.
 
+mod common;
+use common::builtin;
 use serde_json::{json, Value};
 use std::time::{Duration, Instant};
 use tagsmith::family::{from_json_str, Family};
@@ -8,14 +10,6 @@ use tagsmith::render::{marker_scene, raster, readback, SceneOptions};
 
 /// What every reproducer must be refused (or handled) within, in a debug build on a busy machine.
 const FAST: Duration = Duration::from_secs(2);
-
-fn builtin(name: &str) -> Value {
-    let (_, text) = tagsmith::builtin::SOURCES
-        .iter()
-        .find(|(n, _)| *n == name)
-        .unwrap();
-    serde_json::from_str(text).unwrap()
-}
 
 fn timed<T>(what: &str, f: impl FnOnce() -> T) -> T {
     let start = Instant::now();

@@ -9,8 +9,12 @@
 //! Cases come from `arbtest` (random bytes shaped by `arbitrary`), seeded so a failure is
 //! reproducible from the seed it prints.
 
+mod common;
 use arbitrary::Unstructured;
-use serde_json::Value;
+use common::builtin;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde_json::{json, Value};
 use std::time::{Duration, Instant};
 use tagsmith::render::sheet::{layout_sheet, SheetParams};
 use tagsmith::render::{marker_scene, raster, svg, SceneOptions};
@@ -18,15 +22,6 @@ use tagsmith::render::{marker_scene, raster, svg, SceneOptions};
 /// One case may take this long (debug builds, a loaded machine): a hang or a quadratic blow-up
 /// overshoots it by orders of magnitude.
 const CASE_BUDGET: Duration = Duration::from_secs(5);
-
-fn builtin_texts() -> Vec<String> {
-    tagsmith::builtin::names()
-        .map(|name| {
-            let family = tagsmith::builtin::get(name).unwrap().unwrap();
-            tagsmith::family::to_json_string(family.spec())
-        })
-        .collect()
-}
 
 /// A value a careless or hostile author might put anywhere.
 fn wild_value(u: &mut Unstructured) -> arbitrary::Result<Value> {
@@ -127,11 +122,11 @@ fn exercise_family(text: &str) -> Result<(), String> {
 }
 
 fn family_campaign(budget: Duration, seed: Option<u64>) -> (u32, u32) {
-    let texts = builtin_texts();
+    let sources = tagsmith::builtin::SOURCES;
     let (mut cases, mut refused) = (0u32, 0u32);
     let mut test = arbtest::arbtest(|u| {
-        let base = &texts[u.choose_index(texts.len())?];
-        let mut value: Value = serde_json::from_str(base).unwrap();
+        let (name, _) = sources[u.choose_index(sources.len())?];
+        let mut value = builtin(name);
         mutate(&mut value, u)?;
         let text = value.to_string();
         let started = Instant::now();
@@ -224,6 +219,96 @@ fn image_write_png(out: &mut Vec<u8>) {
         pixels: (0..32 * 24).map(|i| (i * 7 % 256) as u8).collect(),
     };
     *out = tagsmith::image::encode_png(&gray).unwrap();
+}
+
+/// Mutates one random leaf or member of a JSON value with everyday mistakes (small numbers,
+/// empty strings, a removed or repeated item): edits that often leave a valid family, so the
+/// drawing path runs too.
+fn nudge(v: &mut Value, rng: &mut ChaCha8Rng) {
+    match v {
+        Value::Object(map) if !map.is_empty() && rng.random_bool(0.8) => {
+            let keys: Vec<String> = map.keys().cloned().collect();
+            let key = &keys[rng.random_range(0..keys.len())];
+            if rng.random_bool(0.1) {
+                map.remove(key);
+            } else {
+                nudge(map.get_mut(key).unwrap(), rng);
+            }
+        }
+        Value::Array(items) if !items.is_empty() && rng.random_bool(0.8) => {
+            let i = rng.random_range(0..items.len());
+            match rng.random_range(0..10) {
+                0 => {
+                    items.remove(i);
+                }
+                1 => {
+                    let copy = items[i].clone();
+                    items.push(copy);
+                }
+                _ => nudge(&mut items[i], rng),
+            }
+        }
+        _ => {
+            *v = match rng.random_range(0..9) {
+                0 => json!(rng.random_range(-5i64..50)),
+                1 => json!(rng.random_range(-1e6..1e6)),
+                2 => json!(0),
+                3 => json!(1e308),
+                4 => json!(""),
+                5 => json!("#zz"),
+                6 => json!(["x", 1]),
+                7 => json!({"symbol": rng.random_range(0..6)}),
+                _ => json!("."),
+            }
+        }
+    }
+}
+
+#[test]
+fn fuzzed_families_never_panic() {
+    let mut rng = ChaCha8Rng::seed_from_u64(2026);
+    let families = [
+        "apriltag-16h5",
+        "apriltag-circle21h7",
+        "quaternary-6x6",
+        "runetag-plus",
+        "topotag-like",
+        "apriltag-xa-36h11",
+    ];
+    let mut loaded = 0;
+    for round in 0..1200 {
+        let mut f = builtin(families[round % families.len()]);
+        for _ in 0..rng.random_range(1..4) {
+            nudge(&mut f, &mut rng);
+        }
+        let text = serde_json::to_string(&f).unwrap();
+        // Loading and, when it loads, rendering must return, not panic.
+        if let Ok(family) = tagsmith::family::from_json_str(&text) {
+            loaded += 1;
+            let _ = marker_scene(&family, 0, SceneOptions::default());
+        }
+    }
+    // Most mutations must still be caught, but some leave a valid family: both paths ran.
+    assert!(
+        loaded > 50 && loaded < 1150,
+        "{loaded} of 1200 mutated families loaded"
+    );
+
+    for _ in 0..300 {
+        let len = rng.random_range(0..400);
+        let bytes: Vec<u8> = (0..len).map(|_| rng.random()).collect();
+        let _ = tagsmith::family::from_json_str(&String::from_utf8_lossy(&bytes));
+    }
+    // Random bytes spliced into a real family file.
+    let text = tagsmith::builtin::SOURCES[0].1.as_bytes().to_vec();
+    for _ in 0..300 {
+        let mut t = text.clone();
+        for _ in 0..rng.random_range(1..6) {
+            let i = rng.random_range(0..t.len());
+            t[i] = rng.random();
+        }
+        let _ = tagsmith::family::from_json_str(&String::from_utf8_lossy(&t));
+    }
 }
 
 #[test]

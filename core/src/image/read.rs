@@ -138,7 +138,7 @@ fn jpeg_is_complete(bytes: &[u8]) -> bool {
 }
 
 fn decode_with<R: BufRead + Seek>(
-    reader: ImageReader<R>,
+    mut reader: ImageReader<R>,
     format: ImageFormat,
     limits: &Limits,
 ) -> Result<GrayImage, ImageErrorKind> {
@@ -152,7 +152,6 @@ fn decode_with<R: BufRead + Seek>(
             message: other.to_string(),
         },
     };
-    let mut reader = reader;
     let mut decoder_limits = ::image::Limits::default();
     // The pixel count is checked below; this bounds what the decoders allocate besides (at most
     // 8 bytes a pixel for 16-bit RGBA, plus headroom for metadata).
@@ -325,26 +324,10 @@ mod tests {
 
     #[test]
     fn a_header_alone_is_judged_by_the_size_it_claims() {
-        let png = encode(
-            ImageFormat::Png,
-            300,
-            200,
-            &vec![0; 300 * 200],
-            ExtendedColorType::L8,
-        );
+        let png = black_png_300x200();
         // Signature + IHDR only: 33 bytes.
         let err = decode(&png[..33], &Limits { max_pixels: 1000 }).unwrap_err();
-        assert!(
-            matches!(
-                err.kind,
-                ImageErrorKind::TooLarge {
-                    width: 300,
-                    height: 200,
-                    ..
-                }
-            ),
-            "{err}"
-        );
+        assert_too_large_300x200(&err);
         let err = decode(&png[..33], &Limits::default()).unwrap_err();
         assert!(matches!(err.kind, ImageErrorKind::Corrupt { .. }), "{err}");
     }
@@ -416,27 +399,33 @@ mod tests {
         assert_eq!(gray_of(&out), [54, 18]);
     }
 
-    #[test]
-    fn an_oversized_header_is_refused_before_decoding() {
-        let png = encode(
+    fn black_png_300x200() -> Vec<u8> {
+        encode(
             ImageFormat::Png,
             300,
             200,
             &vec![0; 300 * 200],
             ExtendedColorType::L8,
+        )
+    }
+
+    fn assert_too_large_300x200(err: &ImageError) {
+        let is_it = matches!(
+            err.kind,
+            ImageErrorKind::TooLarge {
+                width: 300,
+                height: 200,
+                ..
+            }
         );
+        assert!(is_it, "{err}");
+    }
+
+    #[test]
+    fn an_oversized_header_is_refused_before_decoding() {
+        let png = black_png_300x200();
         let err = decode(&png, &Limits { max_pixels: 59_999 }).unwrap_err();
-        assert!(
-            matches!(
-                err.kind,
-                ImageErrorKind::TooLarge {
-                    width: 300,
-                    height: 200,
-                    ..
-                }
-            ),
-            "{err}"
-        );
+        assert_too_large_300x200(&err);
         assert!(err.to_string().contains("300×200"), "{err}");
         assert!(decode(&png, &Limits { max_pixels: 60_000 }).is_ok());
     }
