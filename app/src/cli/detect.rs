@@ -6,7 +6,8 @@ use anyhow::Context;
 use clap::Args;
 use std::path::{Path, PathBuf};
 use tagsmith::detect::annotate::annotate;
-use tagsmith::detect::stage2::Stage2;
+use tagsmith::detect::refine::RefineMode;
+use tagsmith::detect::stage2::{ReadOptions, Stage2};
 use tagsmith::detect::MarkerReport;
 use tagsmith::family::Family;
 use tagsmith::geometry::Camera;
@@ -41,6 +42,11 @@ pub struct DetectArgs {
     /// Stage-2 passes (the second starts from the first's keypoints) [range: 1..=10].
     #[arg(long, default_value_t = 2, value_parser = iterations())]
     pub iterations: usize,
+    /// After stage 2: none (its keypoints as they are), keypoints (one homography through all
+    /// of them), full (that homography aligned with the image against the family's rendering of
+    /// the decoded ID).
+    #[arg(long, default_value = "full", value_parser = refine_mode())]
+    pub refine: RefineMode,
     /// Write the image with the ROI, outline and keypoints drawn on it (PNG).
     #[arg(long)]
     pub annotate: Option<PathBuf>,
@@ -69,12 +75,11 @@ impl DetectArgs {
             return Err(bad_input!("--side-mm must be positive"));
         }
         let model = load_model(self.model.as_deref(), &family)?;
-        let found = model.detect(
-            &image,
-            &roi,
-            self.iterations,
-            Some((&camera, side_mm / 1000.0)),
-        );
+        let options = ReadOptions {
+            iterations: self.iterations,
+            refine: self.refine,
+        };
+        let found = model.detect(&image, &roi, &options, Some((&camera, side_mm / 1000.0)));
         if let Some(path) = &self.annotate {
             let keypoints: Vec<_> = found
                 .iter()
@@ -118,6 +123,9 @@ pub struct DetectSetArgs {
     /// Stage-2 passes per ROI [range: 1..=10].
     #[arg(long, default_value_t = 2, value_parser = iterations())]
     pub iterations: usize,
+    /// After stage 2: none, keypoints or full (as `detect --refine`).
+    #[arg(long, default_value = "full", value_parser = refine_mode())]
+    pub refine: RefineMode,
     /// Only the protocol's Normal images (≤ 50 cm, ≤ 60°).
     #[arg(long)]
     pub normal_only: bool,
@@ -140,7 +148,10 @@ impl DetectSetArgs {
         let mut detector = Stage2FromTruth::new(
             model,
             self.roi_noise,
-            self.iterations,
+            ReadOptions {
+                iterations: self.iterations,
+                refine: self.refine,
+            },
             s.camera,
             s.side_m,
             self.seed,
@@ -170,6 +181,12 @@ impl DetectSetArgs {
         );
         Ok(())
     }
+}
+
+fn refine_mode() -> impl clap::builder::TypedValueParser<Value = RefineMode> {
+    use clap::builder::TypedValueParser;
+    clap::builder::PossibleValuesParser::new(RefineMode::NAMES)
+        .map(|s| s.parse::<RefineMode>().expect("one of the names"))
 }
 
 fn parse_roi(text: &str) -> Result<[[f64; 2]; 4]> {
@@ -244,6 +261,7 @@ mod tests {
             model: None,
             side_mm: None,
             iterations: 2,
+            refine: RefineMode::Full,
             annotate: None,
             max_pixels: tagsmith::image::Limits::DEFAULT_MAX_PIXELS,
         };

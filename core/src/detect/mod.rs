@@ -4,6 +4,7 @@
 
 pub mod annotate;
 mod detection;
+pub mod refine;
 mod report;
 pub mod stage2;
 

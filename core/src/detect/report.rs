@@ -1,8 +1,10 @@
 //! What `tagsmith detect` prints and the studio's Detect panel shows for one marker read from a
 //! ROI: one serialisable type, so both show the same thing.
 
+use super::refine::RefineReport;
 use super::DetectedKeypoint;
 use crate::geometry::PoseJson;
+use crate::pose::PoseUncertainty;
 use serde::{Deserialize, Serialize};
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -27,6 +29,10 @@ pub struct DecodedMarker {
     pub corners: [[f64; 2]; 4],
     pub missing_keypoints: usize,
     pub keypoints: Vec<DetectedKeypoint>,
+    /// The alignment against the family's rendering: whether it replaced stage 2's keypoints,
+    /// or why not, and its residual.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub refinement: Option<RefineReport>,
     pub pose: Option<PoseReport>,
 }
 
@@ -35,6 +41,13 @@ pub struct PoseReport {
     #[serde(flatten)]
     pub pose: PoseJson,
     pub reprojection_rms_px: f64,
+    /// 1-σ uncertainty along the camera's axes.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub uncertainty: Option<PoseUncertainty>,
+    /// The other planar solution's reprojection error over this one's; absent when there is
+    /// only one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ambiguity_ratio: Option<f64>,
     /// The marker size the pose assumes (ROI side).
     pub side_mm: f64,
     /// Where the camera came from ("given", or how it was guessed).
@@ -63,9 +76,12 @@ impl MarkerReport {
                 corners: r.corners,
                 missing_keypoints: r.missing,
                 keypoints: r.keypoints.clone(),
+                refinement: r.refinement.clone(),
                 pose: r.pose.map(|p| PoseReport {
                     pose: PoseJson::from(&p.pose),
                     reprojection_rms_px: p.rms_px,
+                    uncertainty: p.covariance.as_ref().map(PoseUncertainty::from_covariance),
+                    ambiguity_ratio: p.ambiguity_ratio,
                     side_mm,
                     camera: camera.to_string(),
                 }),

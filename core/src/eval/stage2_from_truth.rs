@@ -1,7 +1,7 @@
 //! Stage 2 measured on its own: each true ROI of an image moved by stage-1-like noise, then read
 //! by the stage-2 pipeline — a [`Detector`] the harness's runner times like any other.
 
-use crate::detect::stage2::Stage2;
+use crate::detect::stage2::{ReadOptions, Stage2};
 use crate::detect::{Detection, Detector};
 use crate::geometry::Camera;
 use crate::image::GrayImage;
@@ -14,7 +14,7 @@ pub struct Stage2FromTruth {
     model: Stage2,
     /// Each ROI corner moves by up to this fraction of the marker side in x and y (uniform).
     roi_noise: f64,
-    iterations: usize,
+    options: ReadOptions,
     camera: Camera,
     side_m: f64,
     rng: ChaCha8Rng,
@@ -25,7 +25,7 @@ impl Stage2FromTruth {
     pub fn new(
         model: Stage2,
         roi_noise: f64,
-        iterations: usize,
+        options: ReadOptions,
         camera: Camera,
         side_m: f64,
         seed: u64,
@@ -33,7 +33,7 @@ impl Stage2FromTruth {
         Self {
             model,
             roi_noise,
-            iterations,
+            options,
             camera,
             side_m,
             rng: ChaCha8Rng::seed_from_u64(seed),
@@ -45,8 +45,8 @@ impl Stage2FromTruth {
 impl Detector for Stage2FromTruth {
     fn name(&self) -> String {
         format!(
-            "tagsmith-stage2 ({} passes, ROI noise ±{} side)",
-            self.iterations, self.roi_noise
+            "tagsmith-stage2 ({} passes, refine {:?}, ROI noise ±{} side)",
+            self.options.iterations, self.options.refine, self.roi_noise
         )
     }
 
@@ -73,7 +73,7 @@ impl Detector for Stage2FromTruth {
         let camera = Some((&self.camera, self.side_m));
         self.rois
             .iter()
-            .filter_map(|roi| self.model.detect(image, roi, self.iterations, camera))
+            .filter_map(|roi| self.model.detect(image, roi, &self.options, camera))
             .map(|d| Detection {
                 id: d.id,
                 corners: d.corners,

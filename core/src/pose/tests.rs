@@ -128,3 +128,61 @@ fn bad_input_is_an_error_not_a_panic() {
         Err(GeometryError::BadCamera(_))
     ));
 }
+
+#[test]
+fn a_steep_view_picks_the_right_of_two_planar_solutions_and_reports_the_other() {
+    // Few, noisy points on a small far marker: the classic flip case. Started from the mirrored
+    // pose, the solver must still return the true one (both are tried).
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let (kps, _) = tag_points();
+    let c = camera();
+    let mut ratios = Vec::new();
+    for _ in 0..30 {
+        let truth = random_pose(&mut rng);
+        let pixels = project(&c, &truth, &kps);
+        let sol = solve_planar(&c, &kps, &pixels).unwrap();
+        assert!(sol.pose.rotation_error_deg(&truth) < 1e-4);
+        let flipped = mirrored(&truth);
+        let from_flip = refine(&c, &kps, &pixels, flipped).unwrap();
+        // The mirrored start is a different local minimum (or falls back to the truth).
+        assert!(from_flip.rms_px >= sol.rms_px - 1e-12);
+        if let Some(r) = sol.ambiguity_ratio {
+            assert!(r >= 1.0, "{r}");
+            ratios.push(r);
+        }
+    }
+    assert!(!ratios.is_empty(), "some views have a second minimum");
+}
+
+#[test]
+fn the_reported_uncertainty_matches_the_scatter_of_noisy_solutions() {
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let (kps, _) = tag_points();
+    let c = camera();
+    let truth = random_pose(&mut rng);
+    let exact = project(&c, &truth, &kps);
+    let (mut errors, mut predicted) = (Vec::new(), Vec::new());
+    for _ in 0..200 {
+        let noisy: Vec<[f64; 2]> = exact
+            .iter()
+            .map(|p| {
+                let (u1, u2): (f64, f64) = (rng.random_range(1e-12..1.0), rng.random());
+                let r = 0.5 * (-2.0 * u1.ln()).sqrt();
+                [
+                    p[0] + r * (std::f64::consts::TAU * u2).cos(),
+                    p[1] + r * (std::f64::consts::TAU * u2).sin(),
+                ]
+            })
+            .collect();
+        let sol = solve_planar(&c, &kps, &noisy).unwrap();
+        errors.push((sol.pose.translation - truth.translation)[2]);
+        predicted.push(sol.covariance.unwrap()[(5, 5)].sqrt());
+    }
+    let rms = (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt();
+    let mean_predicted = predicted.iter().sum::<f64>() / predicted.len() as f64;
+    // The depth's scatter over 200 draws against the Jacobian's prediction: within 25 %.
+    assert!(
+        (rms / mean_predicted - 1.0).abs() < 0.25,
+        "scatter {rms:.2e} m, predicted {mean_predicted:.2e} m"
+    );
+}

@@ -125,6 +125,13 @@ pub fn marker_scene(
         regions.entry(key).or_default().push(cell);
     }
     for colour in order {
+        // A region of the background's colour is already there. Drawn anyway, it would meet the
+        // other regions edge to edge, and anti-aliasing composites the two partial coverages of
+        // a shared edge pixel into a light seam (a tenth of a gray step along every edge between
+        // the colours), which the detector's refinement would fit as a shifted edge.
+        if colour == family.background() {
+            continue;
+        }
         let cells = &regions[&(colour.0, colour.1, colour.2)];
         let outline = trace_cells(cells);
         scene.items.push(Item {

@@ -19,7 +19,7 @@ pub mod net;
 pub mod pipeline;
 
 #[cfg(feature = "learn")]
-pub use pipeline::{Stage2, Stage2Result};
+pub use pipeline::{ReadOptions, Stage2, Stage2Result};
 
 use crate::image::GrayImage;
 

@@ -8,13 +8,15 @@ use super::decode::read_patch;
 use super::model_file::{self, ModelError, ModelHeader};
 use super::net::{NetConfig, Outputs, Stage2Net};
 use super::normalise_patch;
+use crate::detect::refine::{refine_marker, Lens, RefineMode, RefineReport, TemplateCache};
 use crate::detect::DetectedKeypoint;
 use crate::family::{Assignment, Family};
 use crate::geometry::{warp_bilinear, Camera, Homography};
 use crate::image::GrayImage;
-use crate::pose::{marker_plane_points, solve_planar, PnpSolution};
+use crate::pose::{covariance, marker_plane_points, solve_planar, PnpSolution, PointNoise};
 use burn::tensor::activation::softmax;
 use burn::tensor::{Device, Tensor, TensorData};
+use nalgebra::DMatrix;
 use serde::Serialize;
 use std::path::Path;
 
@@ -26,6 +28,24 @@ pub struct Stage2 {
     pub header: ModelHeader,
     family: Family,
     device: Device,
+    templates: TemplateCache,
+}
+
+/// How stage 2 reads a ROI.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ReadOptions {
+    /// Network passes (2 is the paper's setting; the second starts from the first's keypoints).
+    pub iterations: usize,
+    pub refine: RefineMode,
+}
+
+impl Default for ReadOptions {
+    fn default() -> Self {
+        Self {
+            iterations: 2,
+            refine: RefineMode::Full,
+        }
+    }
 }
 
 /// A marker decoded from one ROI.
@@ -43,6 +63,8 @@ pub struct Stage2Result {
     pub missing: usize,
     /// Passes run (the second refines the first; a failed second pass keeps the first).
     pub iterations: usize,
+    /// The alignment against the rendering (`--refine full`).
+    pub refinement: Option<RefineReport>,
     #[serde(skip)]
     pub pose: Option<PnpSolution>,
 }
@@ -72,6 +94,7 @@ impl Stage2 {
             header,
             family: family.clone(),
             device,
+            templates: TemplateCache::default(),
         }
     }
 
@@ -94,18 +117,18 @@ impl Stage2 {
         Some((warp_bilinear(image, &to_image, size, size, 128), to_image))
     }
 
-    /// Decodes the marker in `roi` with `iterations` passes (2 is the paper's setting); the pose
-    /// needs a camera and the marker's side in metres (the family's ROI side).
+    /// Decodes the marker in `roi`; the pose needs a camera and the marker's side in metres
+    /// (the family's ROI side).
     pub fn detect(
         &self,
         image: &GrayImage,
         roi: &[[f64; 2]; 4],
-        iterations: usize,
+        options: &ReadOptions,
         camera: Option<(&Camera, f64)>,
     ) -> Option<Stage2Result> {
         let mut roi = *roi;
         let mut result: Option<Stage2Result> = None;
-        for pass in 0..iterations.max(1) {
+        for pass in 0..options.iterations.max(1) {
             match self.pass(image, &roi) {
                 Some(mut r) => {
                     r.iterations = pass + 1;
@@ -116,13 +139,61 @@ impl Stage2 {
             }
         }
         let mut result = result?;
+        let lens = camera.map_or(Lens::Pixels, |(c, _)| Lens::Camera(c));
+        let kps = self.family.keypoints();
+        let mut point_noise = None;
+        if options.refine != RefineMode::None {
+            // One homography through all keypoints, in the lens plane: the family's geometry
+            // replaces each keypoint's own noise.
+            let canonical: Vec<[f64; 2]> =
+                result.keypoints.iter().map(|k| kps[k.index].pos).collect();
+            let plane: Vec<[f64; 2]> = result
+                .keypoints
+                .iter()
+                .map(|k| lens.from_image([k.x, k.y]))
+                .collect();
+            if let Ok(mut h) = Homography::from_points(&canonical, &plane) {
+                if options.refine == RefineMode::Full {
+                    if let Ok(refined) =
+                        refine_marker(image, &self.family, result.id, lens, &h, &self.templates)
+                    {
+                        if refined.report.refined {
+                            h = refined.homography;
+                            point_noise = refined.covariance.map(|c| (refined.clone(), c));
+                        }
+                        result.refinement = Some(refined.report);
+                    }
+                }
+                for k in &mut result.keypoints {
+                    [k.x, k.y] = lens.to_image(h.apply(kps[k.index].pos));
+                }
+                let roi = self.family.roi_points();
+                result.corners = std::array::from_fn(|j| lens.to_image(h.apply(roi[j])));
+            }
+        }
         if let Some((camera, side_m)) = camera {
-            let kps = self.family.keypoints();
             let canonical: Vec<[f64; 2]> =
                 result.keypoints.iter().map(|k| kps[k.index].pos).collect();
             let object = marker_plane_points(&self.family, side_m, &canonical);
             let pixels: Vec<[f64; 2]> = result.keypoints.iter().map(|k| [k.x, k.y]).collect();
             result.pose = solve_planar(camera, &object, &pixels).ok();
+            if let (Some(pose), Some((refined, c))) = (result.pose.as_mut(), point_noise) {
+                // The points all come from one aligned homography: their noise is the
+                // alignment's, not the (near-zero) reprojection residual.
+                let n = canonical.len();
+                let mut j = DMatrix::zeros(2 * n, 8);
+                for (i, &u) in canonical.iter().enumerate() {
+                    let d = refined.jacobian(lens, u);
+                    for k in 0..8 {
+                        j[(2 * i, k)] = d[0][k];
+                        j[(2 * i + 1, k)] = d[1][k];
+                    }
+                }
+                let c = DMatrix::from_fn(8, 8, |r, k| c[(r, k)]);
+                let points = &j * c * j.transpose();
+                pose.covariance =
+                    covariance(camera, &object, &pose.pose, PointNoise::Covariance(&points));
+            }
         }
         Some(result)
     }
@@ -175,6 +246,7 @@ impl Stage2 {
             missing: family.regressed_keypoints().len() - keypoints.len(),
             keypoints,
             iterations: 1,
+            refinement: None,
             pose: None,
         })
     }

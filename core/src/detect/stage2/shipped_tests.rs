@@ -2,6 +2,7 @@
 //! with sensor noise and blur, found from a rough ROI.
 
 use super::shipped_model;
+use super::ReadOptions;
 use super::Stage2;
 use crate::builtin;
 use crate::pose::Pose;
@@ -50,7 +51,12 @@ fn decodes_noisy_markers(name: &str) {
             [p[0] + jitter[j][0] * side, p[1] + jitter[j][1] * side]
         });
         let found = model
-            .detect(&sample.image, &roi, 2, Some((&camera, t.side_m)))
+            .detect(
+                &sample.image,
+                &roi,
+                &ReadOptions::default(),
+                Some((&camera, t.side_m)),
+            )
             .unwrap_or_else(|| panic!("seed {seed}: not decoded"));
         assert_eq!(found.id, truth.id, "seed {seed}");
         assert!(

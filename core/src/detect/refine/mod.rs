@@ -1,0 +1,770 @@
+//! Refinement against the rendering (docs/ARCHITECTURE.md §9.7). Once stage 2 has decoded a
+//! marker, Tagsmith knows exactly what it should look like: the family renders that ID. The
+//! homography from the marker to the image is refined by aligning that rendering with the
+//! full-resolution image: Gauss–Newton over the image's own pixels near the marker's edges (the
+//! image is never interpolated, so there is no pull towards whole pixels), with a photometric gain
+//! and offset and the image's blur as parameters (the model interpolates between two blur levels
+//! of the template, and a lens blurs by pixels, so the blur in marker units follows the local
+//! scale), coarse to fine over the template's blur pyramid, and Huber weights against specular
+//! spots and small occluders. It uses the rendering only, so every family the model expresses
+//! (grids, glyphs, rings) is refined by the same code.
+//!
+//! When the alignment does not lower the residual, moves too far, or leaves many pixels that the
+//! template does not explain (a wrong ID, half the marker hidden), the stage-2 result is kept and
+//! the report says why.
+
+pub mod template;
+
+use crate::geometry::{Camera, Homography};
+use crate::image::GrayImage;
+use nalgebra::{Matrix3, SMatrix, SVector};
+use serde::{Deserialize, Serialize};
+pub use template::Template;
+
+/// How far `detect` goes beyond the network's keypoints.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RefineMode {
+    /// The network's keypoints as they are; the pose from them.
+    None,
+    /// The keypoints re-fitted with the family's geometry (one homography through all of them),
+    /// so that the pose uses every keypoint's position without its individual noise.
+    Keypoints,
+    /// The homography aligned with the image against the family's rendering of the decoded ID.
+    #[default]
+    Full,
+}
+
+impl RefineMode {
+    pub const NAMES: [&'static str; 3] = ["none", "keypoints", "full"];
+}
+
+impl std::str::FromStr for RefineMode {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "none" => Ok(Self::None),
+            "keypoints" => Ok(Self::Keypoints),
+            "full" => Ok(Self::Full),
+            _ => Err(format!(
+                "unknown refinement {s:?}: expected one of {}",
+                Self::NAMES.join(", ")
+            )),
+        }
+    }
+}
+
+/// The plane the homography maps marker units to, and from it to image pixels.
+#[derive(Debug, Clone, Copy)]
+pub enum Lens<'a> {
+    /// The homography maps to pixels directly (no camera known).
+    Pixels,
+    /// The homography maps to undistorted normalised coordinates; the camera's distortion takes
+    /// them to pixels, so a wide-angle lens does not bend the model.
+    Camera(&'a Camera),
+}
+
+impl Lens<'_> {
+    pub fn to_image(&self, q: [f64; 2]) -> [f64; 2] {
+        match self {
+            Lens::Pixels => q,
+            Lens::Camera(c) => c.project([q[0], q[1], 1.0]),
+        }
+    }
+
+    pub fn from_image(&self, p: [f64; 2]) -> [f64; 2] {
+        match self {
+            Lens::Pixels => p,
+            Lens::Camera(c) => c.normalise(p),
+        }
+    }
+}
+
+/// What the refinement did, for the detection's output.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RefineReport {
+    /// True when the refined homography replaced stage 2's.
+    pub refined: bool,
+    /// Why stage 2's result was kept.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub kept_because: Option<String>,
+    /// RMS photometric residual (gray levels) at the end, and from stage 2's homography.
+    pub residual: f64,
+    pub start_residual: f64,
+    /// Share of template samples the rendering does not explain.
+    pub outliers: f64,
+    /// Largest move of a ROI corner, pixels.
+    pub shift_px: f64,
+    /// The image's blur as the best-fitting template blur (Gaussian σ, pixels).
+    pub blur_px: f64,
+    /// The image's noise (σ, gray levels), measured in the template's flat regions.
+    pub noise: f64,
+    pub iterations: usize,
+}
+
+/// The result of [`refine`]: the homography to use and its uncertainty.
+#[derive(Debug, Clone)]
+pub struct Refined {
+    /// Marker units → the lens plane; stage 2's when the refinement was refused.
+    pub homography: Homography,
+    /// Covariance of the 8 homography update parameters at the end (see [`Refined::jacobian`]);
+    /// `None` when refused.
+    pub covariance: Option<SMatrix<f64, 8, 8>>,
+    pub report: RefineReport,
+    centre: [f64; 2],
+}
+
+/// A refinement that moves a ROI corner by more than this share of the ROI side is a divergence.
+const MAX_SHIFT: f64 = 0.1;
+/// More unexplained samples than this: another ID, or a marker partly hidden.
+const MAX_OUTLIERS: f64 = 0.15;
+/// The template blur the alignment starts from, pixels: wider than stage 2's keypoint error.
+const COARSE_BLUR_PX: f64 = 2.0;
+/// Template levels sharper than this are not tried: sampling a 0.2-px edge is aliasing.
+const FINEST_BLUR_PX: f64 = 0.1;
+
+/// Image pixels the alignment may use, at most: more add time, not accuracy.
+const MAX_PIXELS: f64 = 16_000.0;
+/// Pixels where the template's gradient is below this share of its largest are flat: they carry
+/// no information on the geometry and are skipped.
+const EDGE: f64 = 0.02;
+
+/// Aligns `template` with `image`, starting from `start` (marker units → lens plane); `roi` are
+/// the family's ROI points in marker units (for the move and the centre).
+pub fn refine(
+    image: &GrayImage,
+    template: &Template,
+    lens: Lens,
+    start: &Homography,
+    roi: &[[f64; 2]; 4],
+) -> Refined {
+    let centre = [
+        roi.iter().map(|p| p[0]).sum::<f64>() / 4.0,
+        roi.iter().map(|p| p[1]).sum::<f64>() / 4.0,
+    ];
+    let refused = |reason: String, report: Option<RefineReport>| Refined {
+        homography: *start,
+        covariance: None,
+        report: RefineReport {
+            refined: false,
+            kept_because: Some(reason),
+            ..report.unwrap_or(RefineReport {
+                refined: false,
+                kept_because: None,
+                residual: f64::NAN,
+                start_residual: f64::NAN,
+                outliers: f64::NAN,
+                shift_px: 0.0,
+                blur_px: f64::NAN,
+                noise: f64::NAN,
+                iterations: 0,
+            })
+        },
+        centre,
+    };
+    let mut aligner = Aligner {
+        image,
+        template,
+        lens,
+        hc: start.0 * translation(centre),
+        roi: roi.map(|p| [p[0] - centre[0], p[1] - centre[1]]),
+        centre,
+        pixels: Vec::new(),
+        gain: 1.0,
+        offset: 0.0,
+        variance: 1.0,
+        ppu: 1.0,
+        noise: 2.0,
+        iterations: 0,
+    };
+    let Some(ppu) = aligner.pixels_per_unit() else {
+        return refused("the start homography is degenerate".into(), None);
+    };
+    aligner.ppu = ppu;
+    let blur_px = |k: usize| template.levels[k].blur_units * ppu;
+    let levels = template.levels.len();
+    let coarse = (0..levels)
+        .find(|&k| blur_px(k) >= COARSE_BLUR_PX)
+        .unwrap_or(levels - 1);
+    // A level blurred by less than a texel is interpolated with an error that depends on where
+    // the edge falls between texels.
+    let finest = (0..=coarse)
+        .find(|&k| {
+            let l = &template.levels[k];
+            blur_px(k) >= FINEST_BLUR_PX && l.blur_units * l.texels_per_unit >= 0.9
+        })
+        .unwrap_or(coarse);
+    // Image pixels merged in blocks until the template has enough texels per block.
+    let block = (ppu * template::TEXELS_PER_PIXEL / template.texels_per_unit)
+        .log2()
+        .ceil()
+        .max(0.0)
+        .exp2() as usize;
+    aligner.collect_pixels(blur_px(coarse), block);
+    aligner.noise = aligner.estimate_noise(coarse);
+    aligner.variance = blur_px(coarse).powi(2);
+    if !aligner.fit_photometric(coarse) {
+        return refused("the marker is outside the image".into(), None);
+    }
+    let start_hc = aligner.hc;
+    let mut chosen = coarse;
+    for k in (finest..=coarse).rev() {
+        aligner.clamp_variance(k);
+        chosen = k;
+        if !aligner.gauss_newton(k, 6) {
+            return refused("the alignment diverged".into(), None);
+        }
+        // Stop at the first level no blurrier than the image: the fit then interpolates
+        // between it and the next, blurrier one.
+        if blur_px(k) <= aligner.variance.sqrt() {
+            break;
+        }
+    }
+    if !aligner.gauss_newton(chosen, 10) {
+        return refused("the alignment diverged".into(), None);
+    }
+    let Some(end) = aligner.statistics(chosen) else {
+        return refused("the marker left the image".into(), None);
+    };
+    let mut at_start = aligner.clone();
+    at_start.hc = start_hc;
+    let before = at_start.statistics(chosen);
+    let shift_px = aligner.shift_from(&start_hc);
+    let side_px = aligner.roi_side_px();
+    let report = RefineReport {
+        refined: true,
+        kept_because: None,
+        residual: end.rms,
+        start_residual: before.as_ref().map_or(f64::NAN, |s| s.rms),
+        outliers: end.outliers,
+        shift_px,
+        blur_px: aligner.variance.sqrt(),
+        noise: aligner.noise,
+        iterations: aligner.iterations,
+    };
+    if !(shift_px <= MAX_SHIFT * side_px) {
+        return refused(
+            format!("the alignment moved a corner {shift_px:.1} px, over a tenth of the side"),
+            Some(report),
+        );
+    }
+    if end.outliers > MAX_OUTLIERS {
+        return refused(
+            format!(
+                "{:.0} % of the marker does not look like the rendering of ID {} (occluded or \
+                 another marker)",
+                100.0 * end.outliers,
+                template.id
+            ),
+            Some(report),
+        );
+    }
+    if let Some(b) = before {
+        if end.cost >= b.cost {
+            return refused(
+                "the alignment did not lower the residual".into(),
+                Some(report),
+            );
+        }
+    }
+    Refined {
+        homography: Homography(aligner.hc * translation([-centre[0], -centre[1]])),
+        covariance: end.covariance,
+        report,
+        centre,
+    }
+}
+
+impl Refined {
+    /// Derivative of the image position of marker point `u` (marker units) with respect to the 8
+    /// update parameters the covariance is given in: rows x and y.
+    pub fn jacobian(&self, lens: Lens, u: [f64; 2]) -> [[f64; 8]; 2] {
+        let hc = self.homography.0 * translation(self.centre);
+        let uc = [u[0] - self.centre[0], u[1] - self.centre[1]];
+        let mut j = [[0.0; 8]; 2];
+        for k in 0..8 {
+            let eps = 1e-7;
+            let mut d = [0.0; 8];
+            d[k] = eps;
+            let plus = lens.to_image(apply(&(hc * update(&d)), uc));
+            d[k] = -eps;
+            let minus = lens.to_image(apply(&(hc * update(&d)), uc));
+            j[0][k] = (plus[0] - minus[0]) / (2.0 * eps);
+            j[1][k] = (plus[1] - minus[1]) / (2.0 * eps);
+        }
+        j
+    }
+}
+
+/// Templates already rendered, by family, ID and texel density: markers recur from frame to frame,
+/// and rendering one costs more than aligning it.
+#[derive(Default)]
+pub struct TemplateCache {
+    templates:
+        std::sync::Mutex<std::collections::HashMap<(String, usize, u32), std::sync::Arc<Template>>>,
+}
+
+impl TemplateCache {
+    /// Templates kept at most (each is a few hundred kB).
+    const CAPACITY: usize = 256;
+
+    pub fn get(
+        &self,
+        family: &crate::family::Family,
+        id: usize,
+        texels_per_unit: f64,
+    ) -> Result<std::sync::Arc<Template>, crate::render::scene::RenderError> {
+        let key = (family.name().to_string(), id, texels_per_unit as u32);
+        if let Some(t) = self.lock().get(&key) {
+            return Ok(t.clone());
+        }
+        let template = std::sync::Arc::new(Template::render(family, id, texels_per_unit)?);
+        let mut map = self.lock();
+        if map.len() >= Self::CAPACITY {
+            map.clear();
+        }
+        map.insert(key, template.clone());
+        Ok(template)
+    }
+
+    fn lock(
+        &self,
+    ) -> std::sync::MutexGuard<
+        '_,
+        std::collections::HashMap<(String, usize, u32), std::sync::Arc<Template>>,
+    > {
+        // A panic while holding the lock leaves a valid map: keep using it.
+        self.templates.lock().unwrap_or_else(|e| e.into_inner())
+    }
+}
+
+/// Refines the marker ID `id` of `family` seen through `start` (marker units → lens plane):
+/// renders (or reuses) its template at the density the marker's size in the image needs, then
+/// [`refine`]s.
+pub fn refine_marker(
+    image: &GrayImage,
+    family: &crate::family::Family,
+    id: usize,
+    lens: Lens,
+    start: &Homography,
+    cache: &TemplateCache,
+) -> Result<Refined, crate::render::scene::RenderError> {
+    let roi = family.roi_points();
+    let roi: [[f64; 2]; 4] = std::array::from_fn(|i| roi[i]);
+    let centre = [
+        roi.iter().map(|p| p[0]).sum::<f64>() / 4.0,
+        roi.iter().map(|p| p[1]).sum::<f64>() / 4.0,
+    ];
+    let o = lens.to_image(start.apply(centre));
+    let x = lens.to_image(start.apply([centre[0] + 1.0, centre[1]]));
+    let y = lens.to_image(start.apply([centre[0], centre[1] + 1.0]));
+    let ppu = ((x[0] - o[0]) * (y[1] - o[1]) - (x[1] - o[1]) * (y[0] - o[0]))
+        .abs()
+        .sqrt();
+    let tpu = Template::texels_for(if ppu.is_finite() { ppu } else { 1.0 });
+    let template = cache.get(family, id, tpu)?;
+    Ok(refine(image, &template, lens, start, &roi))
+}
+
+/// An image pixel the alignment compares: its gray level and its position on the lens plane.
+#[derive(Debug, Clone, Copy)]
+struct Pixel {
+    value: f64,
+    plane: [f64; 2],
+}
+
+#[derive(Clone)]
+struct Aligner<'a> {
+    image: &'a GrayImage,
+    template: &'a Template,
+    lens: Lens<'a>,
+    /// Centred marker units → lens plane.
+    hc: Matrix3<f64>,
+    /// ROI corners, centred marker units.
+    roi: [[f64; 2]; 4],
+    /// The ROI's centre, marker units.
+    centre: [f64; 2],
+    pixels: Vec<Pixel>,
+    gain: f64,
+    offset: f64,
+    /// The image's blur as a Gaussian variance in pixels². The model at a pixel is
+    /// gain · (T + (variance / s² − σ²) · ∂T/∂σ²) + offset, with σ the level's blur and s the
+    /// local scale (pixels per marker unit): a lens blurs by the same pixels everywhere, which on a
+    /// tilted marker is more marker units on the far side than on the near one.
+    variance: f64,
+    /// Pixels per marker unit at the ROI's centre, at the start.
+    ppu: f64,
+    noise: f64,
+    iterations: usize,
+}
+
+struct Statistics {
+    /// Huber cost per pixel.
+    cost: f64,
+    rms: f64,
+    outliers: f64,
+    covariance: Option<SMatrix<f64, 8, 8>>,
+}
+
+/// Parameters: 8 of the homography update, then gain, offset and the image's blur variance.
+const P: usize = 11;
+
+type Normal = (SMatrix<f64, P, P>, SVector<f64, P>);
+
+impl Aligner<'_> {
+    fn pixel(&self, uc: [f64; 2]) -> [f64; 2] {
+        self.lens.to_image(apply(&self.hc, uc))
+    }
+
+    fn inside(&self, p: [f64; 2]) -> bool {
+        p[0] >= 0.0
+            && p[1] >= 0.0
+            && p[0] <= self.image.width as f64 - 1.0
+            && p[1] <= self.image.height as f64 - 1.0
+    }
+
+    /// Marker units → the aligner's frame, centred on the ROI (keeps the normal equations well
+    /// conditioned whatever the family's coordinates).
+    fn centred(&self, u: [f64; 2]) -> [f64; 2] {
+        [u[0] - self.centre[0], u[1] - self.centre[1]]
+    }
+
+    fn pixels_per_unit(&self) -> Option<f64> {
+        let o = self.pixel([0.0, 0.0]);
+        let x = self.pixel([1.0, 0.0]);
+        let y = self.pixel([0.0, 1.0]);
+        let cross = (x[0] - o[0]) * (y[1] - o[1]) - (x[1] - o[1]) * (y[0] - o[0]);
+        let s = cross.abs().sqrt();
+        (s.is_finite() && s > 1e-6).then_some(s)
+    }
+
+    fn roi_side_px(&self) -> f64 {
+        let p = self.roi.map(|c| self.pixel(c));
+        (0..4)
+            .map(|i| {
+                let (a, b) = (p[i], p[(i + 1) % 4]);
+                (a[0] - b[0]).hypot(a[1] - b[1])
+            })
+            .sum::<f64>()
+            / 4.0
+    }
+
+    fn shift_from(&self, other: &Matrix3<f64>) -> f64 {
+        self.roi
+            .iter()
+            .map(|&c| {
+                let a = self.pixel(c);
+                let b = self.lens.to_image(apply(other, c));
+                (a[0] - b[0]).hypot(a[1] - b[1])
+            })
+            .fold(0.0, f64::max)
+    }
+
+    /// The pixels around the template's support as the start homography places it, with a
+    /// margin for the start's error; thinned by a hash of the position when there are many
+    /// (a regular pattern would sample every edge at the same phase).
+    fn collect_pixels(&mut self, margin_px: f64, block: usize) {
+        let [x0, y0, x1, y1] = self.template.support;
+        let corners = [[x0, y0], [x1, y0], [x1, y1], [x0, y1]].map(|u| self.pixel(self.centred(u)));
+        let margin = margin_px + 3.0;
+        let lo_x = (corners.iter().map(|p| p[0]).fold(f64::INFINITY, f64::min) - margin).max(0.0);
+        let lo_y = (corners.iter().map(|p| p[1]).fold(f64::INFINITY, f64::min) - margin).max(0.0);
+        let hi_x = (corners
+            .iter()
+            .map(|p| p[0])
+            .fold(f64::NEG_INFINITY, f64::max)
+            + margin)
+            .min(self.image.width as f64 - 1.0);
+        let hi_y = (corners
+            .iter()
+            .map(|p| p[1])
+            .fold(f64::NEG_INFINITY, f64::max)
+            + margin)
+            .min(self.image.height as f64 - 1.0);
+        self.pixels.clear();
+        if !(lo_x <= hi_x && lo_y <= hi_y) {
+            return;
+        }
+        let (lo_x, lo_y, hi_x, hi_y) = (
+            lo_x.ceil() as usize,
+            lo_y.ceil() as usize,
+            hi_x.floor() as usize,
+            hi_y.floor() as usize,
+        );
+        let (bw, bh) = ((hi_x - lo_x + 1) / block, (hi_y - lo_y + 1) / block);
+        let area = (bw * bh) as f64;
+        // About half the box is edge band on a typical marker.
+        let keep = (2.0 * MAX_PIXELS / area).min(1.0);
+        let w = self.image.width as usize;
+        let norm = 1.0 / (block * block) as f64;
+        for by in 0..bh {
+            for bx in 0..bw {
+                if keep < 1.0 && spread(bx, by) >= keep {
+                    continue;
+                }
+                let (x, y) = (lo_x + bx * block, lo_y + by * block);
+                let mut sum = 0u32;
+                for yy in y..y + block {
+                    for xx in x..x + block {
+                        sum += self.image.pixels[yy * w + xx] as u32;
+                    }
+                }
+                // A block integrates its pixels: its centre is its position.
+                let half = (block - 1) as f64 / 2.0;
+                self.pixels.push(Pixel {
+                    value: sum as f64 * norm,
+                    plane: self.lens.from_image([x as f64 + half, y as f64 + half]),
+                });
+            }
+        }
+    }
+
+    /// The image's noise: differences between neighbouring pixels where the template is flat.
+    fn estimate_noise(&self, k: usize) -> f64 {
+        let level = &self.template.levels[k];
+        let mut diffs: Vec<f64> = Vec::with_capacity(level.flat.len() * 2);
+        for &u in &level.flat {
+            let p = self.pixel(self.centred(u));
+            let p = [p[0].round(), p[1].round()];
+            if !self.inside(p)
+                || p[0] + 1.0 > self.image.width as f64 - 1.0
+                || p[1] + 1.0 > self.image.height as f64 - 1.0
+            {
+                continue;
+            }
+            let at = |x: f64, y: f64| self.image.get(x as u32, y as u32) as f64;
+            let v = at(p[0], p[1]);
+            diffs.push((v - at(p[0] + 1.0, p[1])).abs());
+            diffs.push((v - at(p[0], p[1] + 1.0)).abs());
+        }
+        if diffs.is_empty() {
+            return 2.0;
+        }
+        let mid = diffs.len() / 2;
+        let (_, median, _) = diffs.select_nth_unstable_by(mid, f64::total_cmp);
+        // MAD of a difference of two pixels: σ·√2·0.6745. Quantisation keeps it above ~1.
+        (*median / (std::f64::consts::SQRT_2 * 0.6745)).max(1.0)
+    }
+
+    /// Each compared pixel with the template there (centred marker point, lookup, model value
+    /// before gain and offset, local scale²), for level `k` at the current estimate.
+    fn visit(&self, k: usize, mut f: impl FnMut(&Pixel, [f64; 2], &template::Lookup, f64, f64)) {
+        let Some(inverse) = self.hc.try_inverse() else {
+            return;
+        };
+        let level = &self.template.levels[k];
+        let threshold = EDGE * level.max_gradient;
+        let level_variance = level.blur_units.powi(2);
+        let [sx0, sy0, sx1, sy1] = self.template.support;
+        for px in &self.pixels {
+            let uc = apply(&inverse, px.plane);
+            let u = [uc[0] + self.centre[0], uc[1] + self.centre[1]];
+            if !(u[0] >= sx0 && u[0] <= sx1 && u[1] >= sy0 && u[1] <= sy1) {
+                continue;
+            }
+            let Some(t) = self.template.lookup(k, u) else {
+                continue;
+            };
+            if t.gradient[0].hypot(t.gradient[1]) < threshold {
+                continue;
+            }
+            let s2 = self.scale2(uc);
+            let model = t.value + (self.variance / s2 - level_variance) * t.blur_slope;
+            f(px, uc, &t, model, s2);
+        }
+    }
+
+    /// Gain and offset by least squares at the current homography and blur.
+    fn fit_photometric(&mut self, k: usize) -> bool {
+        let (mut n, mut st, mut si, mut stt, mut sti) = (0f64, 0.0, 0.0, 0.0, 0.0);
+        self.visit(k, |px, _, _, t, _| {
+            n += 1.0;
+            st += t;
+            si += px.value;
+            stt += t * t;
+            sti += t * px.value;
+        });
+        let var = stt - st * st / n.max(1.0);
+        if n < 50.0 || var <= 1e-9 {
+            return false;
+        }
+        self.gain = (sti - st * si / n) / var;
+        self.offset = (si - self.gain * st) / n;
+        self.gain.is_finite() && self.offset.is_finite()
+    }
+
+    fn huber_threshold(&self) -> f64 {
+        (2.5 * self.noise).max(0.1 * self.gain.abs() * 255.0)
+    }
+
+    fn outlier_threshold(&self) -> f64 {
+        (4.0 * self.noise).max(0.3 * self.gain.abs() * 255.0)
+    }
+
+    /// Normal equations of the 8 warp, 2 photometric and 1 blur parameters at the current
+    /// estimate. The model is the template at H⁻¹(pixel); moving H by (I + D) moves the marker
+    /// point a pixel sees by −D u, hence the template's gradient in the warp columns.
+    fn normal_equations(&self, k: usize) -> Option<(Normal, Statistics)> {
+        let mut a = SMatrix::<f64, P, P>::zeros();
+        let mut g = SVector::<f64, P>::zeros();
+        let (huber, outlier) = (self.huber_threshold(), self.outlier_threshold());
+        let (mut n, mut cost, mut sq, mut outliers, mut wsum) = (0usize, 0.0, 0.0, 0usize, 0.0);
+        let gain = self.gain;
+        self.visit(k, |px, uc, t, model, s2| {
+            let r = px.value - (gain * model + self.offset);
+            let ar = r.abs();
+            let w = if ar <= huber { 1.0 } else { huber / ar };
+            n += 1;
+            cost += if ar <= huber {
+                0.5 * r * r
+            } else {
+                huber * (ar - 0.5 * huber)
+            };
+            sq += r * r;
+            wsum += w * r * r;
+            outliers += usize::from(ar > outlier);
+            let [x, y] = uc;
+            let ga = [t.gradient[0] * gain, t.gradient[1] * gain];
+            let j = [
+                ga[0] * x,
+                ga[0] * y,
+                ga[0],
+                ga[1] * x,
+                ga[1] * y,
+                ga[1],
+                -(ga[0] * x + ga[1] * y) * x,
+                -(ga[0] * x + ga[1] * y) * y,
+                -model,
+                -1.0,
+                -gain * t.blur_slope / s2,
+            ];
+            for r_ in 0..P {
+                let wj = w * j[r_];
+                g[r_] += wj * r;
+                for c in r_..P {
+                    a[(r_, c)] += wj * j[c];
+                }
+            }
+        });
+        if n < 50 {
+            return None;
+        }
+        for r_ in 0..P {
+            for c in 0..r_ {
+                a[(r_, c)] = a[(c, r_)];
+            }
+        }
+        let nf = n as f64;
+        let covariance = a.try_inverse().map(|inv| {
+            let sigma2 = wsum / (nf - P as f64).max(1.0);
+            inv.fixed_view::<8, 8>(0, 0).into_owned() * sigma2
+        });
+        let stats = Statistics {
+            cost: cost / nf,
+            rms: (sq / nf).sqrt(),
+            outliers: outliers as f64 / nf,
+            covariance,
+        };
+        Some(((a, g), stats))
+    }
+
+    /// Gauss–Newton with Huber weights (IRLS) at level `k`; false when it diverges.
+    fn gauss_newton(&mut self, k: usize, max_iterations: usize) -> bool {
+        for _ in 0..max_iterations {
+            let Some(((a, g), _)) = self.normal_equations(k) else {
+                return false;
+            };
+            let mut damped = a;
+            for i in 0..P {
+                damped[(i, i)] += 1e-9 * a[(i, i)].max(1e-12);
+            }
+            let Some(step) = damped.lu().solve(&(-g)) else {
+                return false;
+            };
+            if step.iter().any(|v| !v.is_finite()) {
+                return false;
+            }
+            let d: [f64; 8] = std::array::from_fn(|i| step[i]);
+            let before = self.hc;
+            self.hc *= update(&d);
+            self.gain += step[8];
+            self.offset += step[9];
+            self.variance += step[10];
+            self.clamp_variance(k);
+            self.iterations += 1;
+            if self.shift_from(&before) < 1e-3 {
+                break;
+            }
+        }
+        self.hc.iter().all(|v| v.is_finite())
+    }
+
+    /// Keeps the image's blur where level `k`'s blur term can model it: from half the level's
+    /// variance to the next level's and half as far again.
+    fn clamp_variance(&mut self, k: usize) {
+        let levels = &self.template.levels;
+        let level = (levels[k].blur_units * self.ppu).powi(2);
+        let next = levels
+            .get(k + 1)
+            .map_or(2.0 * level, |l| (l.blur_units * self.ppu).powi(2));
+        self.variance = self
+            .variance
+            .clamp(0.5 * level, next + 0.5 * (next - level));
+    }
+
+    /// Pixels² per marker unit² at centred point `u`: the homography's Jacobian determinant,
+    /// det H / w³ (and the focal lengths' product through a camera).
+    fn scale2(&self, u: [f64; 2]) -> f64 {
+        let h = &self.hc;
+        let w = h[(2, 0)] * u[0] + h[(2, 1)] * u[1] + h[(2, 2)];
+        let lens = match self.lens {
+            Lens::Pixels => 1.0,
+            Lens::Camera(c) => c.fx * c.fy,
+        };
+        (h.determinant() / (w * w * w)).abs() * lens
+    }
+
+    /// Residual statistics at the current homography, with gain and offset re-fitted.
+    fn statistics(&mut self, k: usize) -> Option<Statistics> {
+        if !self.fit_photometric(k) {
+            return None;
+        }
+        self.normal_equations(k).map(|(_, s)| s)
+    }
+}
+
+/// A well-mixed number in [0, 1) from a position (SplitMix64's finaliser).
+fn spread(x: usize, y: usize) -> f64 {
+    let mut z = ((x as u64) << 32 | y as u64).wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^= z >> 31;
+    (z >> 11) as f64 / (1u64 << 53) as f64
+}
+
+/// Small homography change D in centred marker units: (I + D).
+fn update(d: &[f64; 8]) -> Matrix3<f64> {
+    Matrix3::new(
+        1.0 + d[0],
+        d[1],
+        d[2],
+        d[3],
+        1.0 + d[4],
+        d[5],
+        d[6],
+        d[7],
+        1.0,
+    )
+}
+
+fn translation(t: [f64; 2]) -> Matrix3<f64> {
+    Matrix3::new(1.0, 0.0, t[0], 0.0, 1.0, t[1], 0.0, 0.0, 1.0)
+}
+
+fn apply(h: &Matrix3<f64>, p: [f64; 2]) -> [f64; 2] {
+    let q = h * nalgebra::Vector3::new(p[0], p[1], 1.0);
+    [q[0] / q[2], q[1] / q[2]]
+}
+
+#[cfg(test)]
+mod tests;

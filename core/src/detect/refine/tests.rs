@@ -1,0 +1,285 @@
+use super::*;
+use crate::family::Family;
+use crate::render::raster::{gray_at, rasterize};
+use crate::render::scene::{marker_scene, SceneOptions};
+
+fn family(name: &str) -> Family {
+    crate::builtin::get(name).unwrap().unwrap()
+}
+
+/// An exact image of ID `id` seen through `truth` (marker units → pixels) by a camera whose
+/// lens blurs by a Gaussian of σ = 0.6 px and whose pixels integrate over their area: the
+/// rendering is sampled 4 × 4 per pixel (each point jittered within its quarter, so edges are
+/// not rounded to quarter pixels), blurred, and box-averaged. Mid-gray background;
+/// `noise` uniform ± gray levels (seeded); an optional rectangle painted flat over it.
+fn scene(
+    family: &Family,
+    id: usize,
+    truth: &Homography,
+    size: (u32, u32),
+    noise: f64,
+    cover: Option<[f64; 4]>,
+) -> GrayImage {
+    const SUB: usize = 4;
+    let psf = 0.6;
+    let s = marker_scene(family, id, SceneOptions::default()).unwrap();
+    let pixmap = rasterize(&s, 2400.0 / s.width_mm).unwrap();
+    let tpu = pixmap.width() as f64 / s.width_mm * s.scale;
+    let inverse = truth.inverse().unwrap();
+    let (w, h) = (size.0 as usize * SUB, size.1 as usize * SUB);
+    let mut fine = vec![0f64; w * h];
+    let mut rng = 987654321u64;
+    let mut uniform = move || {
+        rng ^= rng << 13;
+        rng ^= rng >> 7;
+        rng ^= rng << 17;
+        (rng >> 11) as f64 / (1u64 << 53) as f64
+    };
+    for y in 0..h {
+        for x in 0..w {
+            let p = [
+                (x as f64 + uniform()) / SUB as f64 - 0.5,
+                (y as f64 + uniform()) / SUB as f64 - 0.5,
+            ];
+            let u = inverse.apply(p);
+            let tx = (u[0] - s.origin[0]) * tpu;
+            let ty = (u[1] - s.origin[1]) * tpu;
+            let inside =
+                tx >= 0.0 && ty >= 0.0 && tx < pixmap.width() as f64 && ty < pixmap.height() as f64;
+            fine[y * w + x] = if inside {
+                gray_at(&pixmap, tx as u32, ty as u32)
+            } else {
+                120.0
+            };
+        }
+    }
+    let sigma = psf * SUB as f64;
+    let radius = (3.0 * sigma).ceil() as isize;
+    let kernel: Vec<f64> = (-radius..=radius)
+        .map(|i| (-(i * i) as f64 / (2.0 * sigma * sigma)).exp())
+        .collect();
+    let total: f64 = kernel.iter().sum();
+    let blur = |src: &[f64], step: usize, len: usize, lines: usize, stride: usize| {
+        let mut out = vec![0f64; src.len()];
+        for line in 0..lines {
+            for i in 0..len {
+                let mut acc = 0.0;
+                for (t, k) in kernel.iter().enumerate() {
+                    let j = (i as isize + t as isize - radius).clamp(0, len as isize - 1) as usize;
+                    acc += k * src[line * stride + j * step];
+                }
+                out[line * stride + i * step] = acc / total;
+            }
+        }
+        out
+    };
+    let rows = blur(&fine, 1, w, h, w);
+    let both = blur(&rows, w, h, w, 1);
+    let mut rng = 12345u64;
+    let mut image = GrayImage::new(size.0, size.1, 0);
+    for y in 0..size.1 as usize {
+        for x in 0..size.0 as usize {
+            let mut v = 0.0;
+            for sy in 0..SUB {
+                for sx in 0..SUB {
+                    v += both[(y * SUB + sy) * w + x * SUB + sx];
+                }
+            }
+            v /= (SUB * SUB) as f64;
+            if let Some([x0, y0, x1, y1]) = cover {
+                if (x0..x1).contains(&(x as f64)) && (y0..y1).contains(&(y as f64)) {
+                    v = 160.0;
+                }
+            }
+            rng ^= rng << 13;
+            rng ^= rng >> 7;
+            rng ^= rng << 17;
+            v += noise * ((rng % 2001) as f64 / 1000.0 - 1.0);
+            image.pixels[y * size.0 as usize + x] = v.round().clamp(0.0, 255.0) as u8;
+        }
+    }
+    image
+}
+
+/// A tilted view of the ROI square, 180 px across.
+fn truth_for(family: &Family) -> Homography {
+    let roi = family.roi_points();
+    let image = [
+        [230.0, 150.0],
+        [420.0, 170.0],
+        [400.0, 330.0],
+        [245.0, 345.0],
+    ];
+    Homography::from_points(&roi[..4], &image).unwrap()
+}
+
+fn corner_error(family: &Family, a: &Homography, b: &Homography) -> f64 {
+    family.roi_points()[..4]
+        .iter()
+        .map(|&p| {
+            let (x, y) = (a.apply(p), b.apply(p));
+            (x[0] - y[0]).hypot(x[1] - y[1])
+        })
+        .fold(0.0, f64::max)
+}
+
+/// Stage 2's start: every ROI corner moved by 2 px in a different direction.
+fn start_from(family: &Family, truth: &Homography) -> Homography {
+    let roi = family.roi_points();
+    let moves = [[2.0, 0.0], [0.0, -2.0], [-1.41, 1.41], [1.41, 1.41]];
+    let image: Vec<[f64; 2]> = roi[..4]
+        .iter()
+        .zip(moves)
+        .map(|(&p, m)| {
+            let q = truth.apply(p);
+            [q[0] + m[0], q[1] + m[1]]
+        })
+        .collect();
+    Homography::from_points(&roi[..4], &image).unwrap()
+}
+
+fn roi4(family: &Family) -> [[f64; 2]; 4] {
+    std::array::from_fn(|i| family.roi_points()[i])
+}
+
+#[test]
+fn converges_to_the_true_homography_from_a_two_pixel_start() {
+    for name in ["apriltag-36h11", "apriltag-xo-36h11", "aruco-6x6_250"] {
+        let f = family(name);
+        let truth = truth_for(&f);
+        let image = scene(&f, 7, &truth, (640, 480), 0.0, None);
+        let template = Template::render(&f, 7, 32.0).unwrap();
+        let start = start_from(&f, &truth);
+        assert!(corner_error(&f, &start, &truth) > 1.9);
+        let r = refine(&image, &template, Lens::Pixels, &start, &roi4(&f));
+        assert!(r.report.refined, "{name}: {:?}", r.report);
+        let e = corner_error(&f, &r.homography, &truth);
+        for &p in &f.roi_points()[..4] {
+            eprintln!("{:?} vs {:?}", r.homography.apply(p), truth.apply(p));
+        }
+        eprintln!("{name}: corner error {e:.4} px");
+        assert!(e < 0.02, "{name}: corner error {e:.4} px, {:?}", r.report);
+    }
+}
+
+#[test]
+fn keeps_the_start_when_the_template_is_another_id() {
+    let f = family("apriltag-36h11");
+    let truth = truth_for(&f);
+    let image = scene(&f, 7, &truth, (640, 480), 0.0, None);
+    let wrong = Template::render(&f, 8, 32.0).unwrap();
+    let start = start_from(&f, &truth);
+    let r = refine(&image, &wrong, Lens::Pixels, &start, &roi4(&f));
+    assert!(!r.report.refined, "{:?}", r.report);
+    assert_eq!(r.homography, start);
+    assert!(r.report.kept_because.is_some());
+}
+
+#[test]
+fn keeps_the_start_when_half_the_marker_is_hidden() {
+    let f = family("apriltag-36h11");
+    let truth = truth_for(&f);
+    let image = scene(
+        &f,
+        7,
+        &truth,
+        (640, 480),
+        0.0,
+        Some([0.0, 0.0, 325.0, 480.0]),
+    );
+    let template = Template::render(&f, 7, 32.0).unwrap();
+    let start = start_from(&f, &truth);
+    let r = refine(&image, &template, Lens::Pixels, &start, &roi4(&f));
+    assert!(!r.report.refined, "{:?}", r.report);
+    assert_eq!(r.homography, start);
+}
+
+#[test]
+fn a_small_specular_spot_and_noise_still_refine() {
+    let f = family("apriltag-36h11");
+    let truth = truth_for(&f);
+    let image = scene(
+        &f,
+        7,
+        &truth,
+        (640, 480),
+        20.0,
+        Some([300.0, 220.0, 318.0, 238.0]),
+    );
+    let template = Template::render(&f, 7, 32.0).unwrap();
+    let start = start_from(&f, &truth);
+    let r = refine(&image, &template, Lens::Pixels, &start, &roi4(&f));
+    assert!(r.report.refined, "{:?}", r.report);
+    let e = corner_error(&f, &r.homography, &truth);
+    assert!(e < 0.15, "corner error {e:.3} px, {:?}", r.report);
+    assert!(
+        r.report.noise > 5.0 && r.report.noise < 20.0,
+        "{:?}",
+        r.report
+    );
+}
+
+#[test]
+fn debug_render_time() {
+    for name in ["apriltag-36h11", "apriltag-xo-36h11", "runetag-plus"] {
+        let f = family(name);
+        let t0 = std::time::Instant::now();
+        let t = Template::render(&f, 3, 32.0).unwrap();
+        eprintln!(
+            "{name}: {:?} {:?}",
+            t0.elapsed(),
+            t.levels
+                .iter()
+                .map(|l| (l.width, l.blur_units))
+                .collect::<Vec<_>>()
+        );
+    }
+}
+
+#[test]
+#[ignore]
+fn debug_harness_residual() {
+    let f = family("apriltag-36h11");
+    let image = crate::image::read(
+        std::path::Path::new("/tmp/bench36/images/000042.png"),
+        &Default::default(),
+    )
+    .unwrap();
+    let roi_px = [
+        [644.480452293346, 250.1803544969256],
+        [577.7469302143562, 215.21217194731753],
+        [605.3269132744247, 144.57521680780098],
+        [670.919754003504, 182.01977501359758],
+    ];
+    let truth = Homography::from_points(&roi4(&f), &roi_px).unwrap();
+    let cache = TemplateCache::default();
+    let start = start_from(&f, &truth);
+    let r = refine_marker(&image, &f, 127, Lens::Pixels, &start, &cache).unwrap();
+    eprintln!(
+        "error {:.4} {:?}",
+        corner_error(&f, &r.homography, &truth),
+        r.report
+    );
+    let t = cache.get(&f, 127, 16.0).unwrap();
+    let inv = truth.inverse().unwrap();
+    let (x0, y0) = (560u32, 125u32);
+    let mut out = GrayImage::new(130 * 4, 140 * 4, 128);
+    for y in 0..140 * 4 {
+        for x in 0..130 * 4 {
+            let p = [
+                x0 as f64 + x as f64 / 4.0 - 0.375,
+                y0 as f64 + y as f64 / 4.0 - 0.375,
+            ];
+            let (ix, iy) = (p[0].round() as u32, p[1].round() as u32);
+            let u = inv.apply([ix as f64, iy as f64]);
+            let m = t.lookup(0, u).map_or(128.0, |l| l.value);
+            let i = image.get(ix, iy) as f64;
+            out.pixels[(y * 130 * 4 + x) as usize] = if x < 260 {
+                (128.0 + 2.0 * (i - m)).clamp(0.0, 255.0) as u8
+            } else {
+                i as u8
+            };
+        }
+    }
+    std::fs::write("/tmp/resid42.png", crate::image::encode_png(&out).unwrap()).unwrap();
+}
