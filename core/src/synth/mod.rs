@@ -516,8 +516,13 @@ fn draw_marker(
     let longest = (0..4)
         .map(|i| (img[i][0] - img[(i + 1) % 4][0]).hypot(img[i][1] - img[(i + 1) % 4][1]))
         .fold(0.0, f64::max);
+    // A whole number of raster pixels per marker unit: the rasteriser places edges to a quarter
+    // of its pixel, so cell edges off the pixel grid moved by up to ⅛ raster pixel — on both
+    // sides of the marker the same way at a given scale, which made every rendered marker a
+    // little smaller or larger than its ground truth (0.1 px at 50 cm).
     let px_per_unit = (1.25 * longest / area.width().max(area.height()))
-        .clamp(2.0, 4096.0 / area.width().max(area.height()));
+        .ceil()
+        .clamp(2.0, (4096.0 / area.width().max(area.height())).floor());
     let pixmap = raster::rasterize(&scene, px_per_unit)?;
     let (pw, ph) = (pixmap.width() as usize, pixmap.height() as usize);
     let (scale_x, scale_y) = (pw as f64 / area.width(), ph as f64 / area.height());

@@ -282,4 +282,13 @@ fn debug_harness_residual() {
         }
     }
     std::fs::write("/tmp/resid42.png", crate::image::encode_png(&out).unwrap()).unwrap();
+    // A line across the frame at mid-height, in marker units: x from -0.5 to 3.0 at y = 5.
+    let roi = f.roi_points();
+    eprintln!("roi {:?}", &roi[..4]);
+    for i in 0..36 {
+        let u = [roi[0][0] - 0.5 + i as f64 * 0.1, (roi[0][1] + roi[2][1]) / 2.0];
+        let p = truth.apply(u);
+        let m = t.lookup(0, u).map_or(f64::NAN, |l| l.value);
+        eprintln!("u {:5.2} image {:6.1} template {:6.1}", u[0], image.sample(p[0] as f32, p[1] as f32), m);
+    }
 }
