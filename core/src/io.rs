@@ -1,5 +1,5 @@
-//! Writing files atomically: a reader (or a crash) never sees a half-written output; and floats
-//! that JSON cannot hold ([`json_float`]).
+//! Writing files atomically: a reader (or a crash) never sees a half-written output; floats
+//! that JSON cannot hold ([`json_float`]); and a [`Stopwatch`] for per-stage timings.
 
 use std::io::Write;
 use std::path::Path;
@@ -355,5 +355,34 @@ mod tests {
     fn a_missing_directory_is_an_error_not_a_panic() {
         let dir = tempfile::tempdir().unwrap();
         assert!(write_atomic(&dir.path().join("no/such/dir/out.txt"), b"x").is_err());
+    }
+}
+
+/// Wall time since it started, for the per-stage timings detections report. Browsers give std no
+/// monotonic clock (`Instant::now` panics there), so on the web it reads 0.
+#[derive(Debug, Clone, Copy)]
+pub struct Stopwatch {
+    #[cfg(not(target_arch = "wasm32"))]
+    started: std::time::Instant,
+}
+
+impl Stopwatch {
+    pub fn start() -> Self {
+        Self {
+            #[cfg(not(target_arch = "wasm32"))]
+            started: std::time::Instant::now(),
+        }
+    }
+
+    /// Milliseconds since [`Stopwatch::start`].
+    pub fn ms(&self) -> f64 {
+        #[cfg(not(target_arch = "wasm32"))]
+        {
+            self.started.elapsed().as_secs_f64() * 1e3
+        }
+        #[cfg(target_arch = "wasm32")]
+        {
+            0.0
+        }
     }
 }

@@ -161,7 +161,7 @@ impl DetectSetArgs {
             !normal_only || matches!(img.group, Group::Protocol { normal: true, .. })
         };
         let file = set::run_detector(&self.set, &s, &mut detector, &include)?;
-        let mut times: Vec<f64> = file
+        let times: Vec<f64> = file
             .images
             .iter()
             .zip(s.images.iter().filter(|img| include(img)))
@@ -170,15 +170,36 @@ impl DetectSetArgs {
             .collect();
         let json = serde_json::to_string_pretty(&file).failure()?;
         write_output(&self.output, json.as_bytes())?;
-        times.sort_by(f64::total_cmp);
-        let median = times.get(times.len() / 2).copied().unwrap_or(f64::NAN);
+        let median = |mut v: Vec<f64>| {
+            v.sort_by(f64::total_cmp);
+            v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+        };
         println!(
-            "{} images, stage 2 per ROI: median {:.2} ms ({} passes); wrote {}",
+            "{} images, stage 2 per ROI: median {:.2} ms ({} passes, refine {}); wrote {}",
             file.images.len(),
-            median,
+            median(times),
             self.iterations,
+            self.refine.name(),
             self.output.display()
         );
+        let refinements = detector.refinements();
+        if !refinements.is_empty() {
+            let refined = refinements.iter().filter(|r| r.refined).count();
+            println!(
+                "refinement: {refined} of {} markers refined; median {:.2} ms aligning, {:.2} ms \
+                 rendering the template ({:.2} ms when not cached)",
+                refinements.len(),
+                median(refinements.iter().map(|r| r.time_ms).collect()),
+                median(refinements.iter().map(|r| r.render_ms).collect()),
+                median(
+                    refinements
+                        .iter()
+                        .map(|r| r.render_ms)
+                        .filter(|&t| t > 0.05)
+                        .collect()
+                ),
+            );
+        }
         Ok(())
     }
 }

@@ -1,6 +1,7 @@
 //! Stage 2 measured on its own: each true ROI of an image moved by stage-1-like noise, then read
 //! by the stage-2 pipeline — a [`Detector`] the harness's runner times like any other.
 
+use crate::detect::refine::RefineReport;
 use crate::detect::stage2::{ReadOptions, Stage2};
 use crate::detect::{Detection, Detector};
 use crate::geometry::Camera;
@@ -19,6 +20,7 @@ pub struct Stage2FromTruth {
     side_m: f64,
     rng: ChaCha8Rng,
     rois: Vec<[[f64; 2]; 4]>,
+    refinements: Vec<RefineReport>,
 }
 
 impl Stage2FromTruth {
@@ -38,7 +40,13 @@ impl Stage2FromTruth {
             side_m,
             rng: ChaCha8Rng::seed_from_u64(seed),
             rois: Vec::new(),
+            refinements: Vec::new(),
         }
+    }
+
+    /// What the refinement did on every marker read so far.
+    pub fn refinements(&self) -> &[RefineReport] {
+        &self.refinements
     }
 }
 
@@ -71,9 +79,15 @@ impl Detector for Stage2FromTruth {
 
     fn detect(&mut self, image: &GrayImage) -> Vec<Detection> {
         let camera = Some((&self.camera, self.side_m));
-        self.rois
+        let found: Vec<_> = self
+            .rois
             .iter()
             .filter_map(|roi| self.model.detect(image, roi, &self.options, camera))
+            .collect();
+        self.refinements
+            .extend(found.iter().filter_map(|d| d.refinement.clone()));
+        found
+            .into_iter()
             .map(|d| Detection {
                 id: d.id,
                 corners: d.corners,

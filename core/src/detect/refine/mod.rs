@@ -17,6 +17,7 @@ pub mod template;
 
 use crate::geometry::{Camera, Homography};
 use crate::image::GrayImage;
+use crate::io::Stopwatch;
 use nalgebra::{Matrix3, SMatrix, SVector};
 use serde::{Deserialize, Serialize};
 pub use template::Template;
@@ -37,6 +38,14 @@ pub enum RefineMode {
 
 impl RefineMode {
     pub const NAMES: [&'static str; 3] = ["none", "keypoints", "full"];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::None => "none",
+            Self::Keypoints => "keypoints",
+            Self::Full => "full",
+        }
+    }
 }
 
 impl std::str::FromStr for RefineMode {
@@ -100,6 +109,11 @@ pub struct RefineReport {
     /// The image's noise (σ, gray levels), measured in the template's flat regions.
     pub noise: f64,
     pub iterations: usize,
+    /// Time of the alignment, and of rendering the template (0 when it was cached), ms.
+    #[serde(default)]
+    pub time_ms: f64,
+    #[serde(default)]
+    pub render_ms: f64,
 }
 
 /// The result of [`refine`]: the homography to use and its uncertainty.
@@ -120,11 +134,16 @@ const MAX_SHIFT: f64 = 0.1;
 const MAX_OUTLIERS: f64 = 0.15;
 /// The template blur the alignment starts from, pixels: wider than stage 2's keypoint error.
 const COARSE_BLUR_PX: f64 = 2.0;
+/// ... and at most this much blur in marker units (a third of a grid cell).
+const MAX_COARSE_UNITS: f64 = 0.33;
 /// Template levels sharper than this are not tried: sampling a 0.2-px edge is aliasing.
 const FINEST_BLUR_PX: f64 = 0.1;
 
-/// Image pixels the alignment may use, at most: more add time, not accuracy.
-const MAX_PIXELS: f64 = 16_000.0;
+/// Image pixels the alignment uses, at most, all near the marker's edges: more add time faster
+/// than they add accuracy.
+const MAX_PIXELS: f64 = 8000.0;
+/// The share of the pixels the coarse levels use.
+const COARSE_SHARE: f64 = 0.3;
 /// Pixels where the template's gradient is below this share of its largest are flat: they carry
 /// no information on the geometry and are skipped.
 const EDGE: f64 = 0.02;
@@ -158,6 +177,8 @@ pub fn refine(
                 blur_px: f64::NAN,
                 noise: f64::NAN,
                 iterations: 0,
+                time_ms: 0.0,
+                render_ms: 0.0,
             })
         },
         centre,
@@ -170,6 +191,7 @@ pub fn refine(
         roi: roi.map(|p| [p[0] - centre[0], p[1] - centre[1]]),
         centre,
         pixels: Vec::new(),
+        share: COARSE_SHARE,
         gain: 1.0,
         offset: 0.0,
         variance: 1.0,
@@ -183,8 +205,16 @@ pub fn refine(
     aligner.ppu = ppu;
     let blur_px = |k: usize| template.levels[k].blur_units * ppu;
     let levels = template.levels.len();
+    // The first level blurs by about stage 2's error, but never by more than a third of a cell:
+    // on a small marker a 2-px blur would wash the cells into one gray.
     let coarse = (0..levels)
-        .find(|&k| blur_px(k) >= COARSE_BLUR_PX)
+        .find(|&k| {
+            blur_px(k) >= COARSE_BLUR_PX
+                || template
+                    .levels
+                    .get(k + 1)
+                    .is_none_or(|l| l.blur_units > MAX_COARSE_UNITS)
+        })
         .unwrap_or(levels - 1);
     // A level blurred by less than a texel is interpolated with an error that depends on where
     // the edge falls between texels.
@@ -200,7 +230,7 @@ pub fn refine(
         .ceil()
         .max(0.0)
         .exp2() as usize;
-    aligner.collect_pixels(blur_px(coarse), block);
+    aligner.collect_pixels(blur_px(coarse), block, coarse);
     aligner.noise = aligner.estimate_noise(coarse);
     aligner.variance = blur_px(coarse).powi(2);
     if !aligner.fit_photometric(coarse) {
@@ -208,21 +238,38 @@ pub fn refine(
     }
     let start_hc = aligner.hc;
     let mut chosen = coarse;
-    for k in (finest..=coarse).rev() {
+    // Levels two apart (the blur halving each time) until the image's blur is reached.
+    for k in (finest..=coarse)
+        .rev()
+        .filter(|k| (coarse - k) % 2 == 0 || *k == finest)
+    {
         aligner.clamp_variance(k);
         chosen = k;
-        if !aligner.gauss_newton(k, 6) {
+        // Coarse levels only bring the start closer: a fiftieth of a pixel is close enough.
+        if !aligner.gauss_newton(k, 4, 0.02) {
             return refused("the alignment diverged".into(), None);
         }
         // Stop at the first level no blurrier than the image: the fit then interpolates
-        // between it and the next, blurrier one.
-        if blur_px(k) <= aligner.variance.sqrt() {
+        // between it and the next, blurrier one. (The coarse level only brings the start
+        // closer: its blur estimate is not trusted.)
+        if k < coarse && blur_px(k) <= aligner.variance.sqrt() {
             break;
         }
     }
-    if !aligner.gauss_newton(chosen, 10) {
+    // The next sharper level may still fit better than the one the halving stopped at.
+    if chosen > finest
+        && (coarse - chosen) % 2 == 0
+        && blur_px(chosen - 1) <= aligner.variance.sqrt()
+    {
+        chosen -= 1;
+        aligner.clamp_variance(chosen);
+    }
+    aligner.share = 1.0;
+    if !aligner.gauss_newton(chosen, 8, 1e-3) {
         return refused("the alignment diverged".into(), None);
     }
+    // The residual before and after on half the pixels: enough to compare them.
+    aligner.share = 0.5;
     let Some(end) = aligner.statistics(chosen) else {
         return refused("the marker left the image".into(), None);
     };
@@ -241,6 +288,8 @@ pub fn refine(
         blur_px: aligner.variance.sqrt(),
         noise: aligner.noise,
         iterations: aligner.iterations,
+        time_ms: 0.0,
+        render_ms: 0.0,
     };
     if !(shift_px <= MAX_SHIFT * side_px) {
         return refused(
@@ -362,8 +411,14 @@ pub fn refine_marker(
         .abs()
         .sqrt();
     let tpu = Template::texels_for(if ppu.is_finite() { ppu } else { 1.0 });
+    let clock = Stopwatch::start();
     let template = cache.get(family, id, tpu)?;
-    Ok(refine(image, &template, lens, start, &roi))
+    let render_ms = clock.ms();
+    let clock = Stopwatch::start();
+    let mut refined = refine(image, &template, lens, start, &roi);
+    refined.report.time_ms = clock.ms();
+    refined.report.render_ms = render_ms;
+    Ok(refined)
 }
 
 /// An image pixel the alignment compares: its gray level and its position on the lens plane.
@@ -371,6 +426,8 @@ pub fn refine_marker(
 struct Pixel {
     value: f64,
     plane: [f64; 2],
+    /// A hash in [0, 1): the pixels with a rank below `Aligner::share` are used.
+    rank: f64,
 }
 
 #[derive(Clone)]
@@ -385,6 +442,9 @@ struct Aligner<'a> {
     /// The ROI's centre, marker units.
     centre: [f64; 2],
     pixels: Vec<Pixel>,
+    /// The share of `pixels` in use: coarse levels, which only bring the start closer, need
+    /// fewer.
+    share: f64,
     gain: f64,
     offset: f64,
     /// The image's blur as a Gaussian variance in pixels². The model at a pixel is
@@ -463,7 +523,7 @@ impl Aligner<'_> {
     /// The pixels around the template's support as the start homography places it, with a
     /// margin for the start's error; thinned by a hash of the position when there are many
     /// (a regular pattern would sample every edge at the same phase).
-    fn collect_pixels(&mut self, margin_px: f64, block: usize) {
+    fn collect_pixels(&mut self, margin_px: f64, block: usize, band_level: usize) {
         let [x0, y0, x1, y1] = self.template.support;
         let corners = [[x0, y0], [x1, y0], [x1, y1], [x0, y1]].map(|u| self.pixel(self.centred(u)));
         let margin = margin_px + 3.0;
@@ -492,17 +552,37 @@ impl Aligner<'_> {
             hi_y.floor() as usize,
         );
         let (bw, bh) = ((hi_x - lo_x + 1) / block, (hi_y - lo_y + 1) / block);
-        let area = (bw * bh) as f64;
-        // About half the box is edge band on a typical marker.
-        let keep = (2.0 * MAX_PIXELS / area).min(1.0);
         let w = self.image.width as usize;
         let norm = 1.0 / (block * block) as f64;
+        let half = (block - 1) as f64 / 2.0;
+        let Some(inverse) = self.hc.try_inverse() else {
+            return;
+        };
+        let level = &self.template.levels[band_level];
+        let threshold = EDGE * level.max_gradient;
+        // Thinned by a hash of the position (a regular pattern would sample every edge at the
+        // same phase): first the box, to about four times the wanted count, then the band.
+        let area = (bw * bh) as f64;
+        let mut keep = (2.0 * MAX_PIXELS / area).min(1.0);
+        let mut band = Vec::new();
         for by in 0..bh {
             for bx in 0..bw {
                 if keep < 1.0 && spread(bx, by) >= keep {
                     continue;
                 }
                 let (x, y) = (lo_x + bx * block, lo_y + by * block);
+                let plane = self.lens.from_image([x as f64 + half, y as f64 + half]);
+                let uc = apply(&inverse, plane);
+                let u = [uc[0] + self.centre[0], uc[1] + self.centre[1]];
+                // The band of the coarsest level used holds every finer level's band.
+                let Some(t) = self.template.lookup(band_level, u) else {
+                    continue;
+                };
+                if t.gradient[0] * t.gradient[0] + t.gradient[1] * t.gradient[1]
+                    < threshold * threshold
+                {
+                    continue;
+                }
                 let mut sum = 0u32;
                 for yy in y..y + block {
                     for xx in x..x + block {
@@ -510,13 +590,23 @@ impl Aligner<'_> {
                     }
                 }
                 // A block integrates its pixels: its centre is its position.
-                let half = (block - 1) as f64 / 2.0;
-                self.pixels.push(Pixel {
+                let rank = spread(bx + 7919, by + 104_729);
+                band.push(Pixel {
                     value: sum as f64 * norm,
-                    plane: self.lens.from_image([x as f64 + half, y as f64 + half]),
+                    plane,
+                    rank,
                 });
             }
         }
+        keep = (MAX_PIXELS / band.len().max(1) as f64).min(1.0);
+        self.pixels = band
+            .into_iter()
+            .filter(|p| p.rank < keep)
+            .map(|p| Pixel {
+                rank: p.rank / keep,
+                ..p
+            })
+            .collect();
     }
 
     /// The image's noise: differences between neighbouring pixels where the template is flat.
@@ -556,7 +646,13 @@ impl Aligner<'_> {
         let threshold = EDGE * level.max_gradient;
         let level_variance = level.blur_units.powi(2);
         let [sx0, sy0, sx1, sy1] = self.template.support;
+        let (det, lens) = self.scale2_parts();
+        let h = &self.hc;
+        let threshold2 = threshold * threshold;
         for px in &self.pixels {
+            if px.rank >= self.share {
+                continue;
+            }
             let uc = apply(&inverse, px.plane);
             let u = [uc[0] + self.centre[0], uc[1] + self.centre[1]];
             if !(u[0] >= sx0 && u[0] <= sx1 && u[1] >= sy0 && u[1] <= sy1) {
@@ -565,10 +661,11 @@ impl Aligner<'_> {
             let Some(t) = self.template.lookup(k, u) else {
                 continue;
             };
-            if t.gradient[0].hypot(t.gradient[1]) < threshold {
+            if t.gradient[0] * t.gradient[0] + t.gradient[1] * t.gradient[1] < threshold2 {
                 continue;
             }
-            let s2 = self.scale2(uc);
+            let w = h[(2, 0)] * uc[0] + h[(2, 1)] * uc[1] + h[(2, 2)];
+            let s2 = (det / (w * w * w)).abs() * lens;
             let model = t.value + (self.variance / s2 - level_variance) * t.blur_slope;
             f(px, uc, &t, model, s2);
         }
@@ -606,7 +703,8 @@ impl Aligner<'_> {
     /// point a pixel sees by −D u, hence the template's gradient in the warp columns.
     fn normal_equations(&self, k: usize) -> Option<(Normal, Statistics)> {
         let mut a = SMatrix::<f64, P, P>::zeros();
-        let mut g = SVector::<f64, P>::zeros();
+        let mut g = [0f64; P];
+        let mut upper = [0f64; P * (P + 1) / 2];
         let (huber, outlier) = (self.huber_threshold(), self.outlier_threshold());
         let (mut n, mut cost, mut sq, mut outliers, mut wsum) = (0usize, 0.0, 0.0, 0usize, 0.0);
         let gain = self.gain;
@@ -638,20 +736,26 @@ impl Aligner<'_> {
                 -1.0,
                 -gain * t.blur_slope / s2,
             ];
-            for r_ in 0..P {
-                let wj = w * j[r_];
+            // Upper triangle, row by row, in a flat array: no index checks in the hot loop.
+            let mut t = 0;
+            for (r_, &jr) in j.iter().enumerate() {
+                let wj = w * jr;
                 g[r_] += wj * r;
-                for c in r_..P {
-                    a[(r_, c)] += wj * j[c];
+                for &jc in &j[r_..] {
+                    upper[t] += wj * jc;
+                    t += 1;
                 }
             }
         });
         if n < 50 {
             return None;
         }
+        let mut t = 0;
         for r_ in 0..P {
-            for c in 0..r_ {
-                a[(r_, c)] = a[(c, r_)];
+            for c in r_..P {
+                a[(r_, c)] = upper[t];
+                a[(c, r_)] = upper[t];
+                t += 1;
             }
         }
         let nf = n as f64;
@@ -665,11 +769,12 @@ impl Aligner<'_> {
             outliers: outliers as f64 / nf,
             covariance,
         };
-        Some(((a, g), stats))
+        Some(((a, SVector::from(g)), stats))
     }
 
-    /// Gauss–Newton with Huber weights (IRLS) at level `k`; false when it diverges.
-    fn gauss_newton(&mut self, k: usize, max_iterations: usize) -> bool {
+    /// Gauss–Newton with Huber weights (IRLS) at level `k`, until a step moves no ROI corner by
+    /// `tolerance_px`; false when it diverges.
+    fn gauss_newton(&mut self, k: usize, max_iterations: usize, tolerance_px: f64) -> bool {
         for _ in 0..max_iterations {
             let Some(((a, g), _)) = self.normal_equations(k) else {
                 return false;
@@ -692,7 +797,7 @@ impl Aligner<'_> {
             self.variance += step[10];
             self.clamp_variance(k);
             self.iterations += 1;
-            if self.shift_from(&before) < 1e-3 {
+            if self.shift_from(&before) < tolerance_px {
                 break;
             }
         }
@@ -712,16 +817,14 @@ impl Aligner<'_> {
             .clamp(0.5 * level, next + 0.5 * (next - level));
     }
 
-    /// Pixels² per marker unit² at centred point `u`: the homography's Jacobian determinant,
-    /// det H / w³ (and the focal lengths' product through a camera).
-    fn scale2(&self, u: [f64; 2]) -> f64 {
-        let h = &self.hc;
-        let w = h[(2, 0)] * u[0] + h[(2, 1)] * u[1] + h[(2, 2)];
+    /// Pixels² per marker unit² at a centred point is the homography's Jacobian determinant,
+    /// det H / w³, times the focal lengths' product through a camera: those two factors.
+    fn scale2_parts(&self) -> (f64, f64) {
         let lens = match self.lens {
             Lens::Pixels => 1.0,
             Lens::Camera(c) => c.fx * c.fy,
         };
-        (h.determinant() / (w * w * w)).abs() * lens
+        (self.hc.determinant(), lens)
     }
 
     /// Residual statistics at the current homography, with gain and offset re-fitted.

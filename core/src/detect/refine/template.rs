@@ -37,7 +37,9 @@ pub struct Level {
     pub width: usize,
     pub height: usize,
     pub values: Vec<f32>,
-    pub gradient: Vec<[f32; 2]>,
+    /// Per texel: value, gradient (x, y) per marker unit, and the change towards the next level
+    /// per unit of blur variance: side by side, so a lookup reads one cache line per corner.
+    pub texels: Vec<[f32; 4]>,
     /// The largest gradient magnitude of the level.
     pub max_gradient: f64,
     /// Texels per marker unit.
@@ -53,9 +55,8 @@ pub struct Level {
 pub struct Lookup {
     pub value: f64,
     pub gradient: [f64; 2],
-    /// How the value changes per unit of added blur variance (marker units²): towards the next
-    /// level, so the fit interpolates between two true blurs (exact at both ends; thin strokes
-    /// do not follow a first-order extrapolation of one).
+    /// How the value changes per unit of added blur variance (marker units²), towards the next
+    /// level.
     pub blur_slope: f64,
 }
 
@@ -170,6 +171,7 @@ impl Template {
         };
         for k in 0..template.levels.len() {
             template.select_flat(k);
+            template.fill_blur_slope(k);
         }
         Ok(template)
     }
@@ -190,7 +192,7 @@ impl Template {
         let mut flat = Vec::new();
         for y in 1..h - 1 {
             for x in 1..w - 1 {
-                let [gx, gy] = level.gradient[y * w + x];
+                let [_, gx, gy, _] = level.texels[y * w + x];
                 if (gx as f64).hypot(gy as f64) < 0.002 * level.max_gradient {
                     flat.push((x, y));
                 }
@@ -202,6 +204,45 @@ impl Template {
             .step_by(stride)
             .map(|&(x, y)| self.texel_to_units(k, x as f64, y as f64))
             .collect();
+    }
+
+    /// The change of each texel of level `k` towards the next level per unit of blur variance:
+    /// the fit then interpolates between two true blurs (exact at both ends; thin strokes do not
+    /// follow a first-order extrapolation of one level).
+    fn fill_blur_slope(&mut self, k: usize) {
+        let Some(next) = self.levels.get(k + 1) else {
+            return;
+        };
+        let level = &self.levels[k];
+        let dv = next.blur_units.powi(2) - level.blur_units.powi(2);
+        let (w, h) = (level.width, level.height);
+        // The next level has the same texels or half as many each way (centred on pairs).
+        let ratio = level.texels_per_unit / next.texels_per_unit;
+        let (nw, nh) = (next.width, next.height);
+        let mut slopes = vec![0f32; w * h];
+        for y in 0..h {
+            let ny = ((y as f64 + 0.5) / ratio - 0.5).clamp(0.0, (nh - 1) as f64);
+            let (y0, fy) = (ny as usize, (ny - ny.floor()) as f32);
+            let y1 = (y0 + 1).min(nh - 1);
+            for x in 0..w {
+                let nx = ((x as f64 + 0.5) / ratio - 0.5).clamp(0.0, (nw - 1) as f64);
+                let (x0, fx) = (nx as usize, (nx - nx.floor()) as f32);
+                let x1 = (x0 + 1).min(nw - 1);
+                let v = &next.values;
+                let at = crate::image::mix(
+                    v[y0 * nw + x0],
+                    v[y0 * nw + x1],
+                    v[y1 * nw + x0],
+                    v[y1 * nw + x1],
+                    fx,
+                    fy,
+                );
+                slopes[y * w + x] = ((at - level.values[y * w + x]) as f64 / dv) as f32;
+            }
+        }
+        for (t, s) in self.levels[k].texels.iter_mut().zip(slopes) {
+            t[3] = s;
+        }
     }
 
     /// Value, gradient and blur slope of level `k` at `u` (marker units), bilinear; `None`
@@ -222,32 +263,21 @@ impl Template {
         let (fx, fy) = ((x - x0 as f64) as f32, (y - y0 as f64) as f32);
         let i = y0 * level.width + x0;
         let j = i + level.width;
+        let t = &level.texels;
+        let (a, b, c, d) = (t[i], t[i + 1], t[j], t[j + 1]);
         let weights = [
             (1.0 - fx) * (1.0 - fy),
             fx * (1.0 - fy),
             (1.0 - fx) * fy,
             fx * fy,
         ];
-        let at = [i, i + 1, j, j + 1];
-        let mut value = 0f32;
-        let mut g = [0f32; 2];
-        for (w, &a) in weights.iter().zip(&at) {
-            value += w * level.values[a];
-            g[0] += w * level.gradient[a][0];
-            g[1] += w * level.gradient[a][1];
-        }
-        let value = value as f64;
-        let blur_slope = match self.levels.get(k + 1) {
-            Some(next) => {
-                let dv = next.blur_units.powi(2) - level.blur_units.powi(2);
-                (self.value(k + 1, u) - value) / dv
-            }
-            None => 0.0,
+        let mix = |n: usize| {
+            (weights[0] * a[n] + weights[1] * b[n] + weights[2] * c[n] + weights[3] * d[n]) as f64
         };
         Some(Lookup {
-            value,
-            gradient: [g[0] as f64, g[1] as f64],
-            blur_slope,
+            value: mix(0),
+            gradient: [mix(1), mix(2)],
+            blur_slope: mix(3),
         })
     }
 
@@ -276,23 +306,24 @@ impl Level {
         blur_units: f64,
     ) -> Self {
         let (w, h) = (width, height);
-        let mut gradient = vec![[0f32; 2]; w * h];
+        let mut texels: Vec<[f32; 4]> = values.iter().map(|&v| [v, 0.0, 0.0, 0.0]).collect();
         let mut max_gradient = 0f64;
         let scale = 0.5 * texels_per_unit as f32;
         for y in 1..h.saturating_sub(1) {
             for x in 1..w.saturating_sub(1) {
                 let gx = (values[y * w + x + 1] - values[y * w + x - 1]) * scale;
                 let gy = (values[(y + 1) * w + x] - values[(y - 1) * w + x]) * scale;
-                gradient[y * w + x] = [gx, gy];
-                max_gradient = max_gradient.max((gx as f64).hypot(gy as f64));
+                texels[y * w + x][1] = gx;
+                texels[y * w + x][2] = gy;
+                max_gradient = max_gradient.max((gx * gx + gy * gy) as f64);
             }
         }
         Self {
             width,
             height,
             values,
-            gradient,
-            max_gradient,
+            texels,
+            max_gradient: max_gradient.sqrt(),
             texels_per_unit,
             blur_units,
             flat: Vec::new(),

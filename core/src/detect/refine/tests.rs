@@ -236,59 +236,81 @@ fn debug_render_time() {
     }
 }
 
+/// Timing of the alignment alone on a harness set (`tagsmith eval generate apriltag-36h11 -o
+/// DIR`): `TAGSMITH_SET=DIR cargo test --release -p tagsmith --lib refine::tests::timing --
+/// --ignored --nocapture`.
+#[test]
+#[ignore]
+fn timing_on_a_harness_set() {
+    let Ok(dir) = std::env::var("TAGSMITH_SET") else {
+        return;
+    };
+    let dir = std::path::PathBuf::from(dir);
+    let set: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("set.json")).unwrap()).unwrap();
+    let f = family(set["family"].as_str().unwrap());
+    let camera: crate::geometry::Camera = serde_json::from_value(set["camera"].clone()).unwrap();
+    let cache = TemplateCache::default();
+    let (mut align, mut render) = (Vec::new(), Vec::new());
+    for im in set["images"].as_array().unwrap() {
+        if im["group"]["normal"].as_bool() != Some(true) {
+            continue;
+        }
+        let image =
+            crate::image::read(&dir.join(im["file"].as_str().unwrap()), &Default::default())
+                .unwrap();
+        let m = &im["truth"]["markers"][0];
+        let roi: Vec<[f64; 2]> = m["roi"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|p| [p[0].as_f64().unwrap() + 1.0, p[1].as_f64().unwrap() - 1.0])
+            .collect();
+        let plane: Vec<[f64; 2]> = roi.iter().map(|&p| camera.normalise(p)).collect();
+        let start = Homography::from_points(&f.roi_points()[..4], &plane).unwrap();
+        let id = m["id"].as_u64().unwrap() as usize;
+        for _ in 0..3 {
+            let r = refine_marker(&image, &f, id, Lens::Camera(&camera), &start, &cache).unwrap();
+            align.push(r.report.time_ms);
+            if r.report.render_ms > 0.05 {
+                render.push(r.report.render_ms);
+            }
+        }
+    }
+    align.sort_by(f64::total_cmp);
+    render.sort_by(f64::total_cmp);
+    eprintln!(
+        "alignment median {:.2} ms over {}, template render median {:.2} ms over {}",
+        align[align.len() / 2],
+        align.len(),
+        render[render.len() / 2],
+        render.len()
+    );
+}
+
 #[test]
 #[ignore]
 fn debug_harness_residual() {
     let f = family("apriltag-36h11");
     let image = crate::image::read(
-        std::path::Path::new("/tmp/bench36/images/000042.png"),
+        std::path::Path::new("/tmp/bench36c/images/000079.png"),
         &Default::default(),
     )
     .unwrap();
     let roi_px = [
-        [644.480452293346, 250.1803544969256],
-        [577.7469302143562, 215.21217194731753],
-        [605.3269132744247, 144.57521680780098],
-        [670.919754003504, 182.01977501359758],
+        [917.69, 493.01],
+        [874.44, 473.41],
+        [881.12, 454.34],
+        [927.26, 474.72],
     ];
     let truth = Homography::from_points(&roi4(&f), &roi_px).unwrap();
     let cache = TemplateCache::default();
-    let start = start_from(&f, &truth);
-    let r = refine_marker(&image, &f, 127, Lens::Pixels, &start, &cache).unwrap();
+    let r = refine_marker(&image, &f, 248, Lens::Pixels, &truth, &cache).unwrap();
     eprintln!(
-        "error {:.4} {:?}",
-        corner_error(&f, &r.homography, &truth),
-        r.report
+        "{:?} error {:.3}",
+        r.report,
+        corner_error(&f, &r.homography, &truth)
     );
-    let t = cache.get(&f, 127, 16.0).unwrap();
-    let inv = truth.inverse().unwrap();
-    let (x0, y0) = (560u32, 125u32);
-    let mut out = GrayImage::new(130 * 4, 140 * 4, 128);
-    for y in 0..140 * 4 {
-        for x in 0..130 * 4 {
-            let p = [
-                x0 as f64 + x as f64 / 4.0 - 0.375,
-                y0 as f64 + y as f64 / 4.0 - 0.375,
-            ];
-            let (ix, iy) = (p[0].round() as u32, p[1].round() as u32);
-            let u = inv.apply([ix as f64, iy as f64]);
-            let m = t.lookup(0, u).map_or(128.0, |l| l.value);
-            let i = image.get(ix, iy) as f64;
-            out.pixels[(y * 130 * 4 + x) as usize] = if x < 260 {
-                (128.0 + 2.0 * (i - m)).clamp(0.0, 255.0) as u8
-            } else {
-                i as u8
-            };
-        }
-    }
-    std::fs::write("/tmp/resid42.png", crate::image::encode_png(&out).unwrap()).unwrap();
-    // A line across the frame at mid-height, in marker units: x from -0.5 to 3.0 at y = 5.
-    let roi = f.roi_points();
-    eprintln!("roi {:?}", &roi[..4]);
-    for i in 0..36 {
-        let u = [roi[0][0] - 0.5 + i as f64 * 0.1, (roi[0][1] + roi[2][1]) / 2.0];
-        let p = truth.apply(u);
-        let m = t.lookup(0, u).map_or(f64::NAN, |l| l.value);
-        eprintln!("u {:5.2} image {:6.1} template {:6.1}", u[0], image.sample(p[0] as f32, p[1] as f32), m);
-    }
+    let id = 0;
+    let _ = id;
 }
