@@ -78,6 +78,110 @@ fn detect_prints_the_id_keypoints_and_pose_and_annotates() {
         .starts_with(b"\x89PNG"));
 }
 
+/// Position (mm) and rotation (°) error of a `detect` report's pose against the scene's truth.
+fn pose_error(report: &serde_json::Value, truth: &serde_json::Value) -> (f64, f64) {
+    let t = &truth["markers"][0]["pose"];
+    let vec3 = |v: &serde_json::Value| -> Vec<f64> {
+        v.as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect()
+    };
+    let mat = |v: &serde_json::Value| -> Vec<Vec<f64>> {
+        v.as_array().unwrap().iter().map(vec3).collect()
+    };
+    let (p, q) = (
+        vec3(&report["pose"]["translation_m"]),
+        vec3(&t["translation_m"]),
+    );
+    let position = (0..3).map(|i| (p[i] - q[i]).powi(2)).sum::<f64>().sqrt() * 1000.0;
+    let (a, b) = (mat(&report["pose"]["rotation"]), mat(&t["rotation"]));
+    // trace(Aᵀ B) = 1 + 2 cos θ
+    let trace: f64 = (0..3)
+        .flat_map(|i| (0..3).map(move |j| (i, j)))
+        .map(|(i, j)| a[i][j] * b[i][j])
+        .sum();
+    let rotation = ((trace - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees();
+    (position, rotation)
+}
+
+#[test]
+fn refining_against_the_rendering_tightens_the_pose_and_reports_how() {
+    let dir = tempfile::tempdir().unwrap();
+    let truth = scene(dir.path());
+    let roi = roi_arg(&truth);
+    std::fs::write(
+        dir.path().join("camera.json"),
+        serde_json::to_string(&truth["camera"]).unwrap(),
+    )
+    .unwrap();
+    let side_mm = format!(
+        "{}",
+        truth["markers"][0]["pose"]["side_m"].as_f64().unwrap() * 1000.0
+    );
+    let detect = |refine: &str| -> serde_json::Value {
+        let run = tagsmith(
+            dir.path(),
+            &[
+                "detect",
+                "s/000000.png",
+                "--family",
+                "apriltag-36h11",
+                "--roi",
+                &roi,
+                "--camera",
+                "camera.json",
+                "--side-mm",
+                &side_mm,
+                "--refine",
+                refine,
+            ],
+        );
+        run.ok();
+        serde_json::from_str(&run.stdout).unwrap()
+    };
+    let (none, full) = (detect("none"), detect("full"));
+    assert!(none.get("refinement").is_none(), "{none}");
+    assert_eq!(full["refinement"]["refined"], true, "{full}");
+    assert!(
+        full["refinement"]["residual"].as_f64().unwrap()
+            < full["refinement"]["start_residual"].as_f64().unwrap()
+    );
+    let uncertainty = &full["pose"]["uncertainty"];
+    assert!(
+        uncertainty["position_mm"][2].as_f64().unwrap() > 0.0,
+        "{full}"
+    );
+    let (p_none, r_none) = pose_error(&none, &truth);
+    let (p_full, r_full) = pose_error(&full, &truth);
+    // Stage 2 alone is within millimetres; aligned with the rendering, within a tenth of that.
+    assert!(p_none < 5.0 && r_none < 2.0, "{p_none:.3} mm, {r_none:.3}°");
+    assert!(
+        p_full < 0.5 && r_full < 0.2 && p_full < p_none,
+        "refined {p_full:.3} mm, {r_full:.3}° (stage 2: {p_none:.3} mm, {r_none:.3}°)"
+    );
+    let run = tagsmith(
+        dir.path(),
+        &[
+            "detect",
+            "s/000000.png",
+            "--family",
+            "apriltag-36h11",
+            "--roi",
+            &roi,
+            "--refine",
+            "best",
+        ],
+    );
+    assert_eq!(run.code, 2, "{}", run.stderr);
+    assert!(
+        run.stderr.contains("none") && run.stderr.contains("full"),
+        "{}",
+        run.stderr
+    );
+}
+
 #[test]
 fn detect_rejects_bad_rois_and_models_with_clear_errors() {
     let dir = tempfile::tempdir().unwrap();
@@ -310,7 +414,12 @@ fn a_jpeg_photograph_decodes_as_the_png_of_the_same_pixels() {
     let detect = |image: &str| {
         let run = tagsmith(dir.path(), &detect_swarmathon_tag(image, &[]));
         run.ok();
-        serde_json::from_str::<serde_json::Value>(&run.stdout).unwrap()
+        let mut report = serde_json::from_str::<serde_json::Value>(&run.stdout).unwrap();
+        // Wall times differ from run to run; everything else must not.
+        let refinement = report["refinement"].as_object_mut().expect("refined");
+        refinement.remove("time_ms");
+        refinement.remove("render_ms");
+        report
     };
     let from_jpeg = detect(jpeg.to_str().unwrap());
     assert_eq!(from_jpeg["id"], 0, "{from_jpeg}");

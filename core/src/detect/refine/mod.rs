@@ -134,8 +134,8 @@ const MAX_SHIFT: f64 = 0.1;
 const MAX_OUTLIERS: f64 = 0.15;
 /// The template blur the alignment starts from, pixels: wider than stage 2's keypoint error.
 const COARSE_BLUR_PX: f64 = 2.0;
-/// ... and at most this much blur in marker units (a third of a grid cell).
-const MAX_COARSE_UNITS: f64 = 0.33;
+/// ... and at most this share of the smallest keypoint (a third of a grid cell).
+const MAX_COARSE_FEATURE: f64 = 0.33;
 /// Template levels sharper than this are not tried: sampling a 0.2-px edge is aliasing.
 const FINEST_BLUR_PX: f64 = 0.1;
 
@@ -205,15 +205,16 @@ pub fn refine(
     aligner.ppu = ppu;
     let blur_px = |k: usize| template.levels[k].blur_units * ppu;
     let levels = template.levels.len();
-    // The first level blurs by about stage 2's error, but never by more than a third of a cell:
-    // on a small marker a 2-px blur would wash the cells into one gray.
+    // The first level blurs by about stage 2's error, but never by more than a third of the
+    // smallest keypoint: on a small marker a 2-px blur would wash the cells into one gray.
+    let max_coarse = MAX_COARSE_FEATURE * template.feature_size;
     let coarse = (0..levels)
         .find(|&k| {
             blur_px(k) >= COARSE_BLUR_PX
                 || template
                     .levels
                     .get(k + 1)
-                    .is_none_or(|l| l.blur_units > MAX_COARSE_UNITS)
+                    .is_none_or(|l| l.blur_units > max_coarse)
         })
         .unwrap_or(levels - 1);
     // A level blurred by less than a texel is interpolated with an error that depends on where
@@ -291,7 +292,8 @@ pub fn refine(
         time_ms: 0.0,
         render_ms: 0.0,
     };
-    if !(shift_px <= MAX_SHIFT * side_px) {
+    // (A NaN shift is a divergence too.)
+    if shift_px.is_nan() || shift_px > MAX_SHIFT * side_px {
         return refused(
             format!("the alignment moved a corner {shift_px:.1} px, over a tenth of the side"),
             Some(report),
@@ -410,7 +412,7 @@ pub fn refine_marker(
     let ppu = ((x[0] - o[0]) * (y[1] - o[1]) - (x[1] - o[1]) * (y[0] - o[0]))
         .abs()
         .sqrt();
-    let tpu = Template::texels_for(if ppu.is_finite() { ppu } else { 1.0 });
+    let tpu = Template::texels_for(family, if ppu.is_finite() { ppu } else { 1.0 });
     let clock = Stopwatch::start();
     let template = cache.get(family, id, tpu)?;
     let render_ms = clock.ms();

@@ -10,10 +10,11 @@ use crate::render::scene::{marker_scene, RenderError, SceneOptions};
 /// texel boundary at every level and the levels sample it symmetrically. The alignment wants
 /// texels of at most half an image pixel (a coarser template, interpolated, blurs by an amount
 /// that depends on where the edge falls between texels, which biases a fronto-parallel view,
-/// whose edges all fall alike, by a tenth of a pixel); markers bigger than this in the image are
-/// compared on a coarser copy of the image instead.
-pub const MAX_TEXELS_PER_UNIT: f64 = 32.0;
-const MIN_TEXELS_PER_UNIT: f64 = 4.0;
+/// whose edges all fall alike, by a tenth of a pixel); markers bigger than the template allows
+/// are compared on a coarser copy of the image instead. At most this many texels across the
+/// marker with its quiet zone (32 per cell on a 36h11 tag):
+pub const MAX_TEXELS_ACROSS: f64 = 400.0;
+const MIN_TEXELS_PER_UNIT: f64 = 1.0 / 64.0;
 pub const TEXELS_PER_PIXEL: f64 = 1.4;
 
 /// The rasteriser's anti-aliasing places slanted edges up to ⅛ of its pixel off (it samples
@@ -69,21 +70,27 @@ pub struct Template {
     pub levels: Vec<Level>,
     /// The scene's top-left corner in marker units.
     pub(crate) origin: [f64; 2],
+    /// The smallest keypoint's size (marker units): a grid's cell, a ring's dot.
+    pub feature_size: f64,
     /// Where the alignment compares (marker units, x0, y0, x1, y1): the marker and a little of its
     /// quiet zone — printed markers often have less than the family asks for.
     pub support: [f64; 4],
 }
 
 impl Template {
-    /// The texel density for a marker seen at `pixels_per_unit`: at least 1.4 texels per pixel
-    /// (the sharpest level used, one texel of blur, is then 0.7 px: sharper than any lens and
-    /// pixel together), a power of two, within the supported range.
-    pub fn texels_for(pixels_per_unit: f64) -> f64 {
+    /// The texel density for a marker of `family` seen at `pixels_per_unit`: at least 1.4
+    /// texels per pixel (the sharpest level used, one texel of blur, is then 0.7 px: sharper than
+    /// any lens and pixel together), a power of two, at most [`MAX_TEXELS_ACROSS`].
+    pub fn texels_for(family: &Family, pixels_per_unit: f64) -> f64 {
+        let area = family.extent().grow(family.quiet_zone());
+        let across = area.width().max(area.height());
+        let most = (MAX_TEXELS_ACROSS / across).log2().floor().exp2();
         (TEXELS_PER_PIXEL * pixels_per_unit)
             .log2()
             .ceil()
             .exp2()
-            .clamp(MIN_TEXELS_PER_UNIT, MAX_TEXELS_PER_UNIT)
+            .min(most)
+            .max(MIN_TEXELS_PER_UNIT)
     }
 
     /// Renders ID `id` of `family` (its print quiet zone included) with `texels_per_unit` (a
@@ -158,6 +165,12 @@ impl Template {
             texels_per_unit,
             levels,
             origin,
+            feature_size: family
+                .keypoints()
+                .iter()
+                .map(|k| k.size)
+                .fold(f64::INFINITY, f64::min)
+                .min(family.cell_size()),
             support: {
                 let e = family.extent();
                 let margin = family.quiet_zone().min(0.5 * family.cell_size());

@@ -144,12 +144,18 @@ fn roi4(family: &Family) -> [[f64; 2]; 4] {
 
 #[test]
 fn converges_to_the_true_homography_from_a_two_pixel_start() {
-    for name in ["apriltag-36h11", "apriltag-xo-36h11", "aruco-6x6_250"] {
+    for name in [
+        "apriltag-36h11",
+        "apriltag-xo-36h11",
+        "aruco-6x6_250",
+        "runetag-plus",
+    ] {
         let f = family(name);
         let truth = truth_for(&f);
         let image = scene(&f, 7, &truth, (640, 480), 0.0, None);
-        let template = Template::render(&f, 7, 32.0).unwrap();
         let start = start_from(&f, &truth);
+        let ppu = (truth.apply([1.0, 0.0])[0] - truth.apply([0.0, 0.0])[0]).abs();
+        let template = Template::render(&f, 7, Template::texels_for(&f, ppu)).unwrap();
         assert!(corner_error(&f, &start, &truth) > 1.9);
         let r = refine(&image, &template, Lens::Pixels, &start, &roi4(&f));
         assert!(r.report.refined, "{name}: {:?}", r.report);
@@ -158,7 +164,18 @@ fn converges_to_the_true_homography_from_a_two_pixel_start() {
             eprintln!("{:?} vs {:?}", r.homography.apply(p), truth.apply(p));
         }
         eprintln!("{name}: corner error {e:.4} px");
-        assert!(e < 0.02, "{name}: corner error {e:.4} px, {:?}", r.report);
+        // Rings: their dots are small round shapes whose rasterised edges the template and the
+        // 2400-px scene place differently by a few hundredths of a texel.
+        let tolerance = if name.starts_with("runetag") {
+            0.15
+        } else {
+            0.02
+        };
+        assert!(
+            e < tolerance,
+            "{name}: corner error {e:.4} px, {:?}",
+            r.report
+        );
     }
 }
 
@@ -220,26 +237,6 @@ fn a_small_specular_spot_and_noise_still_refine() {
 }
 
 #[test]
-fn debug_render_time() {
-    for name in ["apriltag-36h11", "apriltag-xo-36h11", "runetag-plus"] {
-        let f = family(name);
-        let t0 = std::time::Instant::now();
-        let t = Template::render(&f, 3, 32.0).unwrap();
-        eprintln!(
-            "{name}: {:?} {:?}",
-            t0.elapsed(),
-            t.levels
-                .iter()
-                .map(|l| (l.width, l.blur_units))
-                .collect::<Vec<_>>()
-        );
-    }
-}
-
-/// Timing of the alignment alone on a harness set (`tagsmith eval generate apriltag-36h11 -o
-/// DIR`): `TAGSMITH_SET=DIR cargo test --release -p tagsmith --lib refine::tests::timing --
-/// --ignored --nocapture`.
-#[test]
 #[ignore]
 fn timing_on_a_harness_set() {
     let Ok(dir) = std::env::var("TAGSMITH_SET") else {
@@ -286,31 +283,4 @@ fn timing_on_a_harness_set() {
         render[render.len() / 2],
         render.len()
     );
-}
-
-#[test]
-#[ignore]
-fn debug_harness_residual() {
-    let f = family("apriltag-36h11");
-    let image = crate::image::read(
-        std::path::Path::new("/tmp/bench36c/images/000079.png"),
-        &Default::default(),
-    )
-    .unwrap();
-    let roi_px = [
-        [917.69, 493.01],
-        [874.44, 473.41],
-        [881.12, 454.34],
-        [927.26, 474.72],
-    ];
-    let truth = Homography::from_points(&roi4(&f), &roi_px).unwrap();
-    let cache = TemplateCache::default();
-    let r = refine_marker(&image, &f, 248, Lens::Pixels, &truth, &cache).unwrap();
-    eprintln!(
-        "{:?} error {:.3}",
-        r.report,
-        corner_error(&f, &r.homography, &truth)
-    );
-    let id = 0;
-    let _ = id;
 }

@@ -5,6 +5,7 @@ use super::shipped_model;
 use super::ReadOptions;
 use super::Stage2;
 use crate::builtin;
+use crate::detect::refine::RefineMode;
 use crate::pose::Pose;
 use crate::synth::{synthesize, Mode, SynthConfig};
 
@@ -50,26 +51,40 @@ fn decodes_noisy_markers(name: &str) {
             let p = truth.roi[(j + start) % 4];
             [p[0] + jitter[j][0] * side, p[1] + jitter[j][1] * side]
         });
-        let found = model
-            .detect(
-                &sample.image,
-                &roi,
-                &ReadOptions::default(),
-                Some((&camera, t.side_m)),
-            )
-            .unwrap_or_else(|| panic!("seed {seed}: not decoded"));
-        assert_eq!(found.id, truth.id, "seed {seed}");
-        assert!(
-            found.keypoints.len() >= 60,
-            "seed {seed}: {} keypoints",
-            found.keypoints.len()
-        );
-        let pose = found.pose.expect("a pose from all keypoints").pose;
-        let position_mm = pose.position_error(&expected) * 1000.0;
-        let rotation_deg = pose.rotation_error_deg(&expected);
+        let mut errors = Vec::new();
+        for refine in [RefineMode::None, RefineMode::Full] {
+            let options = ReadOptions {
+                refine,
+                ..ReadOptions::default()
+            };
+            let found = model
+                .detect(&sample.image, &roi, &options, Some((&camera, t.side_m)))
+                .unwrap_or_else(|| panic!("seed {seed}: not decoded"));
+            assert_eq!(found.id, truth.id, "seed {seed}");
+            assert!(
+                found.keypoints.len() >= 60,
+                "seed {seed}: {} keypoints",
+                found.keypoints.len()
+            );
+            let pose = found.pose.expect("a pose from all keypoints").pose;
+            errors.push((
+                pose.position_error(&expected) * 1000.0,
+                pose.rotation_error_deg(&expected),
+                found.refinement,
+            ));
+        }
+        let (position_mm, rotation_deg, _) = errors[0];
         assert!(
             position_mm < 5.0 && rotation_deg < 2.0,
-            "seed {seed}: position error {position_mm:.2} mm, rotation error {rotation_deg:.2}°"
+            "seed {seed}: stage 2 alone, position error {position_mm:.2} mm, rotation error \
+             {rotation_deg:.2}°"
+        );
+        // Aligned with the rendering, a tenth of stage 2's bounds.
+        let (position_mm, rotation_deg, ref refinement) = errors[1];
+        assert!(
+            position_mm < 0.5 && rotation_deg < 0.2,
+            "seed {seed}: refined, position error {position_mm:.3} mm, rotation error \
+             {rotation_deg:.3}°, {refinement:?}"
         );
     }
 }
