@@ -1,4 +1,4 @@
-//! Refinement against the rendering (docs/ARCHITECTURE.md §9.7). Once stage 2 has decoded a
+//! Refinement against the rendering (docs/ARCHITECTURE.md §9.10). Once stage 2 has decoded a
 //! marker, Tagsmith knows exactly what it should look like: the family renders that ID. The
 //! homography from the marker to the image is refined by aligning that rendering with the
 //! full-resolution image: Gauss–Newton over the image's own pixels near the marker's edges (the
@@ -194,7 +194,7 @@ pub fn refine(
         share: COARSE_SHARE,
         gain: 1.0,
         offset: 0.0,
-        variance: 1.0,
+        blur: [1.0, 1.0, 0.0],
         ppu: 1.0,
         noise: 2.0,
         iterations: 0,
@@ -233,7 +233,8 @@ pub fn refine(
         .exp2() as usize;
     aligner.collect_pixels(blur_px(coarse), block, coarse);
     aligner.noise = aligner.estimate_noise(coarse);
-    aligner.variance = blur_px(coarse).powi(2);
+    let v = blur_px(coarse).powi(2);
+    aligner.blur = [v, v, 0.0];
     if !aligner.fit_photometric(coarse) {
         return refused("the marker is outside the image".into(), None);
     }
@@ -253,14 +254,14 @@ pub fn refine(
         // Stop at the first level no blurrier than the image: the fit then interpolates
         // between it and the next, blurrier one. (The coarse level only brings the start
         // closer: its blur estimate is not trusted.)
-        if k < coarse && blur_px(k) <= aligner.variance.sqrt() {
+        if k < coarse && blur_px(k) <= aligner.variance().sqrt() {
             break;
         }
     }
     // The next sharper level may still fit better than the one the halving stopped at.
     if chosen > finest
         && (coarse - chosen) % 2 == 0
-        && blur_px(chosen - 1) <= aligner.variance.sqrt()
+        && blur_px(chosen - 1) <= aligner.variance().sqrt()
     {
         chosen -= 1;
         aligner.clamp_variance(chosen);
@@ -286,7 +287,7 @@ pub fn refine(
         start_residual: before.as_ref().map_or(f64::NAN, |s| s.rms),
         outliers: end.outliers,
         shift_px,
-        blur_px: aligner.variance.sqrt(),
+        blur_px: aligner.variance().sqrt(),
         noise: aligner.noise,
         iterations: aligner.iterations,
         time_ms: 0.0,
@@ -449,11 +450,13 @@ struct Aligner<'a> {
     share: f64,
     gain: f64,
     offset: f64,
-    /// The image's blur as a Gaussian variance in pixels². The model at a pixel is
-    /// gain · (T + (variance / s² − σ²) · ∂T/∂σ²) + offset, with σ the level's blur and s the
-    /// local scale (pixels per marker unit): a lens blurs by the same pixels everywhere, which on a
-    /// tilted marker is more marker units on the far side than on the near one.
-    variance: f64,
+    /// The image's blur as a Gaussian covariance in pixels² (xx, yy, xy): a lens blurs by the
+    /// same pixels everywhere, which on a tilted marker is more marker units on the far side and
+    /// along the tilt than across it; motion blurs along one direction. Mapped to marker units
+    /// through the local Jacobian J of the homography, C = J⁻¹ C_px J⁻ᵀ, the model at a pixel is
+    /// gain · (T + (tr C / 2 − σ²) · ∂T/∂σ² + ½ tr((C − tr C / 2 · I) ∇²T)) + offset, σ the
+    /// level's blur: its isotropic part interpolates between two levels, the rest is first order.
+    blur: [f64; 3],
     /// Pixels per marker unit at the ROI's centre, at the start.
     ppu: f64,
     noise: f64,
@@ -468,8 +471,8 @@ struct Statistics {
     covariance: Option<SMatrix<f64, 8, 8>>,
 }
 
-/// Parameters: 8 of the homography update, then gain, offset and the image's blur variance.
-const P: usize = 11;
+/// Parameters: 8 of the homography update, then gain, offset and the image's blur covariance.
+const P: usize = 13;
 
 type Normal = (SMatrix<f64, P, P>, SVector<f64, P>);
 
@@ -639,8 +642,13 @@ impl Aligner<'_> {
     }
 
     /// Each compared pixel with the template there (centred marker point, lookup, model value
-    /// before gain and offset, local scale²), for level `k` at the current estimate.
-    fn visit(&self, k: usize, mut f: impl FnMut(&Pixel, [f64; 2], &template::Lookup, f64, f64)) {
+    /// before gain and offset, and the model's derivatives by the blur covariance's xx, yy and
+    /// xy), for level `k` at the current estimate.
+    fn visit(
+        &self,
+        k: usize,
+        mut f: impl FnMut(&Pixel, [f64; 2], &template::Lookup, f64, [f64; 3]),
+    ) {
         let Some(inverse) = self.hc.try_inverse() else {
             return;
         };
@@ -648,9 +656,13 @@ impl Aligner<'_> {
         let threshold = EDGE * level.max_gradient;
         let level_variance = level.blur_units.powi(2);
         let [sx0, sy0, sx1, sy1] = self.template.support;
-        let (det, lens) = self.scale2_parts();
+        let (fx, fy) = match self.lens {
+            Lens::Pixels => (1.0, 1.0),
+            Lens::Camera(c) => (c.fx, c.fy),
+        };
         let h = &self.hc;
         let threshold2 = threshold * threshold;
+        let [cxx, cyy, cxy] = self.blur;
         for px in &self.pixels {
             if px.rank >= self.share {
                 continue;
@@ -666,10 +678,32 @@ impl Aligner<'_> {
             if t.gradient[0] * t.gradient[0] + t.gradient[1] * t.gradient[1] < threshold2 {
                 continue;
             }
+            // J = d(pixel)/d(marker unit) here (the lens's distortion left out: it barely
+            // changes J across a marker), and M = J⁻¹.
             let w = h[(2, 0)] * uc[0] + h[(2, 1)] * uc[1] + h[(2, 2)];
-            let s2 = (det / (w * w * w)).abs() * lens;
-            let model = t.value + (self.variance / s2 - level_variance) * t.blur_slope;
-            f(px, uc, &t, model, s2);
+            let q = px.plane;
+            let j00 = fx * (h[(0, 0)] - q[0] * h[(2, 0)]) / w;
+            let j01 = fx * (h[(0, 1)] - q[0] * h[(2, 1)]) / w;
+            let j10 = fy * (h[(1, 0)] - q[1] * h[(2, 0)]) / w;
+            let j11 = fy * (h[(1, 1)] - q[1] * h[(2, 1)]) / w;
+            let det = j00 * j11 - j01 * j10;
+            let (m00, m01, m10, m11) = (j11 / det, -j01 / det, -j10 / det, j00 / det);
+            // C_u = cxx·m0 m0ᵀ + cyy·m1 m1ᵀ + cxy·(m0 m1ᵀ + m1 m0ᵀ), m0 and m1 M's columns; each
+            // term's effect on the model: its half trace times the slope towards the next level,
+            // plus its traceless part against the template's second derivatives.
+            let effect = |e00: f64, e11: f64, e01: f64| {
+                0.5 * (e00 + e11) * t.blur_slope
+                    + 0.5 * (e00 - e11) * t.half_difference
+                    + e01 * t.cross
+            };
+            let d = [
+                effect(m00 * m00, m10 * m10, m00 * m10),
+                effect(m01 * m01, m11 * m11, m01 * m11),
+                effect(2.0 * m00 * m01, 2.0 * m10 * m11, m00 * m11 + m10 * m01),
+            ];
+            let model =
+                t.value - level_variance * t.blur_slope + cxx * d[0] + cyy * d[1] + cxy * d[2];
+            f(px, uc, &t, model, d);
         }
     }
 
@@ -710,7 +744,7 @@ impl Aligner<'_> {
         let (huber, outlier) = (self.huber_threshold(), self.outlier_threshold());
         let (mut n, mut cost, mut sq, mut outliers, mut wsum) = (0usize, 0.0, 0.0, 0usize, 0.0);
         let gain = self.gain;
-        self.visit(k, |px, uc, t, model, s2| {
+        self.visit(k, |px, uc, t, model, d| {
             let r = px.value - (gain * model + self.offset);
             let ar = r.abs();
             let w = if ar <= huber { 1.0 } else { huber / ar };
@@ -736,7 +770,9 @@ impl Aligner<'_> {
                 -(ga[0] * x + ga[1] * y) * y,
                 -model,
                 -1.0,
-                -gain * t.blur_slope / s2,
+                -gain * d[0],
+                -gain * d[1],
+                -gain * d[2],
             ];
             // Upper triangle, row by row, in a flat array: no index checks in the hot loop.
             let mut t = 0;
@@ -796,7 +832,9 @@ impl Aligner<'_> {
             self.hc *= update(&d);
             self.gain += step[8];
             self.offset += step[9];
-            self.variance += step[10];
+            for (b, s) in self.blur.iter_mut().zip(&step.as_slice()[10..]) {
+                *b += s;
+            }
             self.clamp_variance(k);
             self.iterations += 1;
             if self.shift_from(&before) < tolerance_px {
@@ -806,27 +844,33 @@ impl Aligner<'_> {
         self.hc.iter().all(|v| v.is_finite())
     }
 
-    /// Keeps the image's blur where level `k`'s blur term can model it: from half the level's
-    /// variance to the next level's and half as far again.
+    /// The image's blur as one variance, pixels²: the mean over directions.
+    fn variance(&self) -> f64 {
+        0.5 * (self.blur[0] + self.blur[1])
+    }
+
+    /// Keeps the image's blur where level `k`'s blur terms can model it: its mean variance from
+    /// half the level's to the next level's and half as far again, positive in every direction.
     fn clamp_variance(&mut self, k: usize) {
         let levels = &self.template.levels;
         let level = (levels[k].blur_units * self.ppu).powi(2);
         let next = levels
             .get(k + 1)
             .map_or(2.0 * level, |l| (l.blur_units * self.ppu).powi(2));
-        self.variance = self
-            .variance
-            .clamp(0.5 * level, next + 0.5 * (next - level));
-    }
-
-    /// Pixels² per marker unit² at a centred point is the homography's Jacobian determinant,
-    /// det H / w³, times the focal lengths' product through a camera: those two factors.
-    fn scale2_parts(&self) -> (f64, f64) {
-        let lens = match self.lens {
-            Lens::Pixels => 1.0,
-            Lens::Camera(c) => c.fx * c.fy,
-        };
-        (self.hc.determinant(), lens)
+        let mean = self.variance();
+        let target = mean.clamp(0.5 * level, next + 0.5 * (next - level));
+        if mean > 0.0 && mean.is_finite() {
+            let scale = target / mean;
+            self.blur[0] *= scale;
+            self.blur[1] *= scale;
+            self.blur[2] *= scale;
+        } else {
+            self.blur = [target, target, 0.0];
+        }
+        self.blur[0] = self.blur[0].max(0.1 * level);
+        self.blur[1] = self.blur[1].max(0.1 * level);
+        let most = 0.95 * (self.blur[0] * self.blur[1]).sqrt();
+        self.blur[2] = self.blur[2].clamp(-most, most);
     }
 
     /// Residual statistics at the current homography, with gain and offset re-fitted.

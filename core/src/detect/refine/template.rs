@@ -38,9 +38,11 @@ pub struct Level {
     pub width: usize,
     pub height: usize,
     pub values: Vec<f32>,
-    /// Per texel: value, gradient (x, y) per marker unit, and the change towards the next level
-    /// per unit of blur variance: side by side, so a lookup reads one cache line per corner.
-    pub texels: Vec<[f32; 4]>,
+    /// Per texel: value, gradient (x, y) per marker unit, the change towards the next level per
+    /// unit of blur variance, and two second derivatives per marker unit² — (T_xx − T_yy) / 2 and
+    /// T_xy — for blur that differs between directions: side by side, so a lookup reads one cache
+    /// line per corner.
+    pub texels: Vec<[f32; 6]>,
     /// The largest gradient magnitude of the level.
     pub max_gradient: f64,
     /// Texels per marker unit.
@@ -59,6 +61,10 @@ pub struct Lookup {
     /// How the value changes per unit of added blur variance (marker units²), towards the next
     /// level.
     pub blur_slope: f64,
+    /// (T_xx − T_yy) / 2 and T_xy: how it changes when the blur grows in one direction more than
+    /// in the other (the heat equation: ∂T/∂C = ½ ∇²T).
+    pub half_difference: f64,
+    pub cross: f64,
 }
 
 #[derive(Debug, Clone)]
@@ -205,7 +211,7 @@ impl Template {
         let mut flat = Vec::new();
         for y in 1..h - 1 {
             for x in 1..w - 1 {
-                let [_, gx, gy, _] = level.texels[y * w + x];
+                let [_, gx, gy, ..] = level.texels[y * w + x];
                 if (gx as f64).hypot(gy as f64) < 0.002 * level.max_gradient {
                     flat.push((x, y));
                 }
@@ -291,6 +297,8 @@ impl Template {
             value: mix(0),
             gradient: [mix(1), mix(2)],
             blur_slope: mix(3),
+            half_difference: mix(4),
+            cross: mix(5),
         })
     }
 
@@ -319,15 +327,27 @@ impl Level {
         blur_units: f64,
     ) -> Self {
         let (w, h) = (width, height);
-        let mut texels: Vec<[f32; 4]> = values.iter().map(|&v| [v, 0.0, 0.0, 0.0]).collect();
+        let mut texels: Vec<[f32; 6]> = values
+            .iter()
+            .map(|&v| [v, 0.0, 0.0, 0.0, 0.0, 0.0])
+            .collect();
         let mut max_gradient = 0f64;
+        let second = (texels_per_unit * texels_per_unit) as f32;
         let scale = 0.5 * texels_per_unit as f32;
         for y in 1..h.saturating_sub(1) {
             for x in 1..w.saturating_sub(1) {
                 let gx = (values[y * w + x + 1] - values[y * w + x - 1]) * scale;
                 let gy = (values[(y + 1) * w + x] - values[(y - 1) * w + x]) * scale;
+                let v = |dx: isize, dy: isize| {
+                    values[(y as isize + dy) as usize * w + (x as isize + dx) as usize]
+                };
+                let txx = v(1, 0) - 2.0 * v(0, 0) + v(-1, 0);
+                let tyy = v(0, 1) - 2.0 * v(0, 0) + v(0, -1);
+                let txy = (v(1, 1) - v(1, -1) - v(-1, 1) + v(-1, -1)) / 4.0;
                 texels[y * w + x][1] = gx;
                 texels[y * w + x][2] = gy;
+                texels[y * w + x][4] = 0.5 * (txx - tyy) * second;
+                texels[y * w + x][5] = txy * second;
                 max_gradient = max_gradient.max((gx * gx + gy * gy) as f64);
             }
         }

@@ -160,9 +160,6 @@ fn converges_to_the_true_homography_from_a_two_pixel_start() {
         let r = refine(&image, &template, Lens::Pixels, &start, &roi4(&f));
         assert!(r.report.refined, "{name}: {:?}", r.report);
         let e = corner_error(&f, &r.homography, &truth);
-        for &p in &f.roi_points()[..4] {
-            eprintln!("{:?} vs {:?}", r.homography.apply(p), truth.apply(p));
-        }
         eprintln!("{name}: corner error {e:.4} px");
         // Rings: their dots are small round shapes whose rasterised edges the template and the
         // 2400-px scene place differently by a few hundredths of a texel.
