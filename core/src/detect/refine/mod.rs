@@ -738,17 +738,19 @@ impl Aligner<'_> {
     /// estimate. The model is the template at H⁻¹(pixel); moving H by (I + D) moves the marker
     /// point a pixel sees by −D u, hence the template's gradient in the warp columns.
     fn normal_equations(&self, k: usize) -> Option<(Normal, Statistics)> {
-        let mut a = SMatrix::<f64, P, P>::zeros();
-        let mut g = [0f64; P];
-        let mut upper = [0f64; P * (P + 1) / 2];
         let (huber, outlier) = (self.huber_threshold(), self.outlier_threshold());
         let (mut n, mut cost, mut sq, mut outliers, mut wsum) = (0usize, 0.0, 0.0, 0usize, 0.0);
         let gain = self.gain;
+        // The Jacobian column by column (one contiguous array per parameter), then JᵀWJ as
+        // dot products: a pixel's 91 products, accumulated row by row, took a third of the time.
+        let cap = self.pixels.len();
+        let mut columns = vec![0f64; P * cap];
+        let mut weights = vec![0f64; cap];
+        let mut weighted_residuals = vec![0f64; cap];
         self.visit(k, |px, uc, t, model, d| {
             let r = px.value - (gain * model + self.offset);
             let ar = r.abs();
             let w = if ar <= huber { 1.0 } else { huber / ar };
-            n += 1;
             cost += if ar <= huber {
                 0.5 * r * r
             } else {
@@ -774,26 +776,29 @@ impl Aligner<'_> {
                 -gain * d[1],
                 -gain * d[2],
             ];
-            // Upper triangle, row by row, in a flat array: no index checks in the hot loop.
-            let mut t = 0;
-            for (r_, &jr) in j.iter().enumerate() {
-                let wj = w * jr;
-                g[r_] += wj * r;
-                for &jc in &j[r_..] {
-                    upper[t] += wj * jc;
-                    t += 1;
-                }
+            for (p, v) in j.into_iter().enumerate() {
+                columns[p * cap + n] = v;
             }
+            weights[n] = w;
+            weighted_residuals[n] = w * r;
+            n += 1;
         });
         if n < 50 {
             return None;
         }
-        let mut t = 0;
+        let mut a = SMatrix::<f64, P, P>::zeros();
+        let mut g = [0f64; P];
+        let mut weighted = vec![0f64; n];
         for r_ in 0..P {
+            let jr = &columns[r_ * cap..r_ * cap + n];
+            g[r_] = dot(jr, &weighted_residuals[..n]);
+            for ((o, &j), &w) in weighted.iter_mut().zip(jr).zip(&weights[..n]) {
+                *o = j * w;
+            }
             for c in r_..P {
-                a[(r_, c)] = upper[t];
-                a[(c, r_)] = upper[t];
-                t += 1;
+                let v = dot(&weighted, &columns[c * cap..c * cap + n]);
+                a[(r_, c)] = v;
+                a[(c, r_)] = v;
             }
         }
         let nf = n as f64;
@@ -880,6 +885,25 @@ impl Aligner<'_> {
         }
         self.normal_equations(k).map(|(_, s)| s)
     }
+}
+
+/// Σ aᵢbᵢ with eight independent partial sums, which the compiler turns into vector
+/// instructions (one running sum would wait on each addition in turn).
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let mut partial = [0f64; 8];
+    let (ca, cb) = (a.chunks_exact(8), b.chunks_exact(8));
+    let tail: f64 = ca
+        .remainder()
+        .iter()
+        .zip(cb.remainder())
+        .map(|(x, y)| x * y)
+        .sum();
+    for (x, y) in ca.zip(cb) {
+        for i in 0..8 {
+            partial[i] += x[i] * y[i];
+        }
+    }
+    partial.iter().sum::<f64>() + tail
 }
 
 /// A well-mixed number in [0, 1) from a position (SplitMix64's finaliser).

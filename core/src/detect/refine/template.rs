@@ -212,7 +212,8 @@ impl Template {
         for y in 1..h - 1 {
             for x in 1..w - 1 {
                 let [_, gx, gy, ..] = level.texels[y * w + x];
-                if (gx as f64).hypot(gy as f64) < 0.002 * level.max_gradient {
+                let (gx, gy) = (gx as f64, gy as f64);
+                if gx * gx + gy * gy < (0.002 * level.max_gradient).powi(2) {
                     flat.push((x, y));
                 }
             }
