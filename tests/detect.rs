@@ -35,6 +35,20 @@ fn roi_arg(truth: &serde_json::Value) -> String {
         .join(",")
 }
 
+/// `tagsmith detect` on the scene's image with the family, its true ROI and `extra` arguments.
+fn detect_scene(dir: &std::path::Path, roi: &str, extra: &[&str]) -> Run {
+    let mut args = vec![
+        "detect",
+        "s/000000.png",
+        "--family",
+        "apriltag-36h11",
+        "--roi",
+        roi,
+    ];
+    args.extend_from_slice(extra);
+    tagsmith(dir, &args)
+}
+
 #[test]
 fn the_learned_detector_commands_have_help() {
     let dir = tempfile::tempdir().unwrap();
@@ -50,19 +64,7 @@ fn detect_prints_the_id_keypoints_and_pose_and_annotates() {
     let dir = tempfile::tempdir().unwrap();
     let truth = scene(dir.path());
     let roi = roi_arg(&truth);
-    let run = tagsmith(
-        dir.path(),
-        &[
-            "detect",
-            "s/000000.png",
-            "--family",
-            "apriltag-36h11",
-            "--roi",
-            &roi,
-            "--annotate",
-            "a.png",
-        ],
-    );
+    let run = detect_scene(dir.path(), &roi, &["--annotate", "a.png"]);
     run.ok();
     let out: serde_json::Value = serde_json::from_str(&run.stdout).unwrap();
     assert_eq!(out["decoded"], true);
@@ -121,15 +123,10 @@ fn refining_against_the_rendering_tightens_the_pose_and_reports_how() {
         truth["markers"][0]["pose"]["side_m"].as_f64().unwrap() * 1000.0
     );
     let detect = |refine: &str| -> serde_json::Value {
-        let run = tagsmith(
+        let run = detect_scene(
             dir.path(),
+            &roi,
             &[
-                "detect",
-                "s/000000.png",
-                "--family",
-                "apriltag-36h11",
-                "--roi",
-                &roi,
                 "--camera",
                 "camera.json",
                 "--side-mm",
@@ -161,19 +158,7 @@ fn refining_against_the_rendering_tightens_the_pose_and_reports_how() {
         p_full < 0.5 && r_full < 0.2 && p_full < p_none,
         "refined {p_full:.3} mm, {r_full:.3}° (stage 2: {p_none:.3} mm, {r_none:.3}°)"
     );
-    let run = tagsmith(
-        dir.path(),
-        &[
-            "detect",
-            "s/000000.png",
-            "--family",
-            "apriltag-36h11",
-            "--roi",
-            &roi,
-            "--refine",
-            "best",
-        ],
-    );
+    let run = detect_scene(dir.path(), &roi, &["--refine", "best"]);
     assert_eq!(run.code, 2, "{}", run.stderr);
     assert!(
         run.stderr.contains("none") && run.stderr.contains("full"),

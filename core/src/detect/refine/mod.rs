@@ -531,21 +531,11 @@ impl Aligner<'_> {
     fn collect_pixels(&mut self, margin_px: f64, block: usize, band_level: usize) {
         let [x0, y0, x1, y1] = self.template.support;
         let corners = [[x0, y0], [x1, y0], [x1, y1], [x0, y1]].map(|u| self.pixel(self.centred(u)));
+        let [lo_x, lo_y, hi_x, hi_y] = crate::geometry::bounding_box(&corners);
         let margin = margin_px + 3.0;
-        let lo_x = (corners.iter().map(|p| p[0]).fold(f64::INFINITY, f64::min) - margin).max(0.0);
-        let lo_y = (corners.iter().map(|p| p[1]).fold(f64::INFINITY, f64::min) - margin).max(0.0);
-        let hi_x = (corners
-            .iter()
-            .map(|p| p[0])
-            .fold(f64::NEG_INFINITY, f64::max)
-            + margin)
-            .min(self.image.width as f64 - 1.0);
-        let hi_y = (corners
-            .iter()
-            .map(|p| p[1])
-            .fold(f64::NEG_INFINITY, f64::max)
-            + margin)
-            .min(self.image.height as f64 - 1.0);
+        let (lo_x, lo_y) = ((lo_x - margin).max(0.0), (lo_y - margin).max(0.0));
+        let hi_x = (hi_x + margin).min(self.image.width as f64 - 1.0);
+        let hi_y = (hi_y + margin).min(self.image.height as f64 - 1.0);
         self.pixels.clear();
         if !(lo_x <= hi_x && lo_y <= hi_y) {
             return;
