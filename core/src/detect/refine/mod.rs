@@ -143,7 +143,7 @@ const FINEST_BLUR_PX: f64 = 0.1;
 /// than they add accuracy.
 const MAX_PIXELS: f64 = 8000.0;
 /// The share of the pixels the coarse levels use.
-const COARSE_SHARE: f64 = 0.3;
+const COARSE_SHARE: f64 = 0.2;
 /// Pixels where the template's gradient is below this share of its largest are flat: they carry
 /// no information on the geometry and are skipped.
 const EDGE: f64 = 0.02;
@@ -198,6 +198,7 @@ pub fn refine(
         ppu: 1.0,
         noise: 2.0,
         iterations: 0,
+        last: None,
     };
     let Some(ppu) = aligner.pixels_per_unit() else {
         return refused("the start homography is degenerate".into(), None);
@@ -248,7 +249,7 @@ pub fn refine(
         aligner.clamp_variance(k);
         chosen = k;
         // Coarse levels only bring the start closer: a fiftieth of a pixel is close enough.
-        if !aligner.gauss_newton(k, 4, 0.02) {
+        if !aligner.gauss_newton(k, 2, 0.05) {
             return refused("the alignment diverged".into(), None);
         }
         // Stop at the first level no blurrier than the image: the fit then interpolates
@@ -267,14 +268,14 @@ pub fn refine(
         aligner.clamp_variance(chosen);
     }
     aligner.share = 1.0;
-    if !aligner.gauss_newton(chosen, 8, 1e-3) {
+    if !aligner.gauss_newton(chosen, 8, 3e-3) {
         return refused("the alignment diverged".into(), None);
     }
-    // The residual before and after on half the pixels: enough to compare them.
-    aligner.share = 0.5;
-    let Some(end) = aligner.statistics(chosen) else {
+    let Some(end) = aligner.last.clone() else {
         return refused("the marker left the image".into(), None);
     };
+    // The residual at stage 2's homography, gain and offset fitted anew, on every pixel as the
+    // end's.
     let mut at_start = aligner.clone();
     at_start.hc = start_hc;
     let before = at_start.statistics(chosen);
@@ -461,8 +462,12 @@ struct Aligner<'a> {
     ppu: f64,
     noise: f64,
     iterations: usize,
+    /// The residual statistics of the last Gauss–Newton step, taken just before it (it moved
+    /// less than the tolerance).
+    last: Option<Statistics>,
 }
 
+#[derive(Clone)]
 struct Statistics {
     /// Huber cost per pixel.
     cost: f64,
@@ -808,10 +813,12 @@ impl Aligner<'_> {
     /// Gauss–Newton with Huber weights (IRLS) at level `k`, until a step moves no ROI corner by
     /// `tolerance_px`; false when it diverges.
     fn gauss_newton(&mut self, k: usize, max_iterations: usize, tolerance_px: f64) -> bool {
+        self.last = None;
         for _ in 0..max_iterations {
-            let Some(((a, g), _)) = self.normal_equations(k) else {
+            let Some(((a, g), stats)) = self.normal_equations(k) else {
                 return false;
             };
+            self.last = Some(stats);
             let mut damped = a;
             for i in 0..P {
                 damped[(i, i)] += 1e-9 * a[(i, i)].max(1e-12);

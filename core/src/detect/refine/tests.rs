@@ -233,7 +233,7 @@ fn timing_on_a_harness_set() {
     let f = family(set["family"].as_str().unwrap());
     let camera: crate::geometry::Camera = serde_json::from_value(set["camera"].clone()).unwrap();
     let cache = TemplateCache::default();
-    let (mut align, mut render) = (Vec::new(), Vec::new());
+    let (mut align, mut render, mut iterations) = (Vec::new(), Vec::new(), Vec::new());
     for im in set["images"].as_array().unwrap() {
         if im["group"]["normal"].as_bool() != Some(true) {
             continue;
@@ -254,6 +254,7 @@ fn timing_on_a_harness_set() {
         for _ in 0..3 {
             let r = refine_marker(&image, &f, id, Lens::Camera(&camera), &start, &cache).unwrap();
             align.push(r.report.time_ms);
+            iterations.push(r.report.iterations as f64);
             if r.report.render_ms > 0.05 {
                 render.push(r.report.render_ms);
             }
@@ -261,10 +262,13 @@ fn timing_on_a_harness_set() {
     }
     align.sort_by(f64::total_cmp);
     render.sort_by(f64::total_cmp);
+    iterations.sort_by(f64::total_cmp);
     eprintln!(
-        "alignment median {:.2} ms over {}, template render median {:.2} ms over {}",
+        "alignment median {:.2} ms over {} ({} Gauss-Newton iterations), template render median \
+         {:.2} ms over {}",
         align[align.len() / 2],
         align.len(),
+        iterations[iterations.len() / 2],
         render[render.len() / 2],
         render.len()
     );
