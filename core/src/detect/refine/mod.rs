@@ -198,7 +198,6 @@ pub fn refine(
         ppu: 1.0,
         noise: 2.0,
         iterations: 0,
-        last: None,
     };
     let Some(ppu) = aligner.pixels_per_unit() else {
         return refused("the start homography is degenerate".into(), None);
@@ -271,11 +270,12 @@ pub fn refine(
     if !aligner.gauss_newton(chosen, 8, 3e-3) {
         return refused("the alignment diverged".into(), None);
     }
-    let Some(end) = aligner.last.clone() else {
+    // The residual before and after, gain and offset fitted anew for each (the Gauss–Newton
+    // state's own gain would favour the end), on half the pixels: enough to compare them.
+    aligner.share = 0.5;
+    let Some(end) = aligner.statistics(chosen) else {
         return refused("the marker left the image".into(), None);
     };
-    // The residual at stage 2's homography, gain and offset fitted anew, on every pixel as the
-    // end's.
     let mut at_start = aligner.clone();
     at_start.hc = start_hc;
     let before = at_start.statistics(chosen);
@@ -462,12 +462,8 @@ struct Aligner<'a> {
     ppu: f64,
     noise: f64,
     iterations: usize,
-    /// The residual statistics of the last Gauss–Newton step, taken just before it (it moved
-    /// less than the tolerance).
-    last: Option<Statistics>,
 }
 
-#[derive(Clone)]
 struct Statistics {
     /// Huber cost per pixel.
     cost: f64,
@@ -813,12 +809,10 @@ impl Aligner<'_> {
     /// Gauss–Newton with Huber weights (IRLS) at level `k`, until a step moves no ROI corner by
     /// `tolerance_px`; false when it diverges.
     fn gauss_newton(&mut self, k: usize, max_iterations: usize, tolerance_px: f64) -> bool {
-        self.last = None;
         for _ in 0..max_iterations {
-            let Some(((a, g), stats)) = self.normal_equations(k) else {
+            let Some(((a, g), _)) = self.normal_equations(k) else {
                 return false;
             };
-            self.last = Some(stats);
             let mut damped = a;
             for i in 0..P {
                 damped[(i, i)] += 1e-9 * a[(i, i)].max(1e-12);
