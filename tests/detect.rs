@@ -385,6 +385,44 @@ fn sample(name: &str) -> std::path::PathBuf {
         .join(name)
 }
 
+/// The ArUco tutorial photograph: OpenCV's corners for the six markers (`ArucoDetector`,
+/// DICT_6X6_250, no sub-pixel step; clockwise from the marker's top-left), each ROI read by the
+/// shipped ArUco weights and refined.
+#[test]
+fn the_aruco_photograph_reads_every_marker_with_opencvs_id() {
+    let dir = tempfile::tempdir().unwrap();
+    let image = sample("aruco-6x6_250-tutorial.jpg");
+    let markers = [
+        (40, "359,310,404,310,410,350,362,350"),
+        (98, "427,255,469,256,477,289,434,288"),
+        (62, "233,273,190,273,196,241,237,241"),
+        (23, "298,185,334,186,335,212,297,211"),
+        (124, "425,163,430,186,394,186,390,162"),
+        (203, "195,155,230,155,227,178,190,178"),
+    ];
+    for (id, roi) in markers {
+        let run = tagsmith(
+            dir.path(),
+            &[
+                "detect",
+                image.to_str().unwrap(),
+                "--family",
+                "aruco-6x6_250",
+                "--roi",
+                roi,
+            ],
+        );
+        run.ok();
+        let out: serde_json::Value = serde_json::from_str(&run.stdout).unwrap();
+        assert_eq!(out["id"], id, "{roi}: {}", run.stdout);
+        assert!(
+            out["pose"]["reprojection_rms_px"].as_f64().unwrap() < 0.5,
+            "{}",
+            run.stdout
+        );
+    }
+}
+
 #[test]
 fn a_jpeg_photograph_decodes_as_the_png_of_the_same_pixels() {
     let dir = tempfile::tempdir().unwrap();

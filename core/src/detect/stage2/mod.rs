@@ -33,6 +33,10 @@ const SHIPPED: &[(&str, &[u8])] = &[
         "apriltag-xo-36h11",
         include_bytes!("../../../../assets/models/apriltag-xo-36h11.stage2.bin"),
     ),
+    (
+        "aruco-6x6_250",
+        include_bytes!("../../../../assets/models/aruco-6x6_250.stage2.bin"),
+    ),
 ];
 
 /// The shipped stage-2 model file of a built-in family, if it has one.

@@ -19,6 +19,11 @@ fn shipped_xo_weights_decode_a_noisy_marker_and_its_pose() {
     decodes_noisy_markers("apriltag-xo-36h11");
 }
 
+#[test]
+fn shipped_aruco_weights_decode_a_noisy_marker_and_its_pose() {
+    decodes_noisy_markers("aruco-6x6_250");
+}
+
 fn decodes_noisy_markers(name: &str) {
     let family = builtin::get(name).unwrap().unwrap();
     let bytes = shipped_model(family.name()).expect("the weights are shipped");
