@@ -283,20 +283,20 @@ mod tests {
         std::fs::write(&target, b"old").unwrap();
         let link = dir.path().join("link.txt");
         std::os::unix::fs::symlink("real.txt", &link).unwrap();
+        let is_symlink = |p: &Path| {
+            std::fs::symlink_metadata(p)
+                .unwrap()
+                .file_type()
+                .is_symlink()
+        };
         write_atomic(&link, b"new").unwrap();
-        assert!(std::fs::symlink_metadata(&link)
-            .unwrap()
-            .file_type()
-            .is_symlink());
+        assert!(is_symlink(&link));
         assert_eq!(std::fs::read(&target).unwrap(), b"new");
         // A dangling link creates its target.
         let dangling = dir.path().join("dangling.txt");
         std::os::unix::fs::symlink("made.txt", &dangling).unwrap();
         write_atomic(&dangling, b"x").unwrap();
-        assert!(std::fs::symlink_metadata(&dangling)
-            .unwrap()
-            .file_type()
-            .is_symlink());
+        assert!(is_symlink(&dangling));
         assert_eq!(std::fs::read(dir.path().join("made.txt")).unwrap(), b"x");
     }
 

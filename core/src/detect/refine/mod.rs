@@ -18,7 +18,7 @@ pub mod template;
 use crate::geometry::{Camera, Homography};
 use crate::image::GrayImage;
 use crate::io::Stopwatch;
-use nalgebra::{Matrix3, SMatrix, SVector};
+use nalgebra::{DMatrix, Matrix3, SMatrix, SVector};
 use serde::{Deserialize, Serialize};
 pub use template::Template;
 
@@ -100,11 +100,11 @@ pub struct RefineReport {
     /// RMS photometric residual (gray levels) at the end, and from stage 2's homography.
     pub residual: f64,
     pub start_residual: f64,
-    /// Share of template samples the rendering does not explain.
+    /// Share of the compared pixels the rendering does not explain.
     pub outliers: f64,
     /// Largest move of a ROI corner, pixels.
     pub shift_px: f64,
-    /// The image's blur as the best-fitting template blur (Gaussian σ, pixels).
+    /// The image's fitted blur (Gaussian σ, pixels; the mean over directions).
     pub blur_px: f64,
     /// The image's noise (σ, gray levels), measured in the template's flat regions.
     pub noise: f64,
@@ -136,7 +136,7 @@ const MAX_OUTLIERS: f64 = 0.15;
 const COARSE_BLUR_PX: f64 = 2.0;
 /// ... and at most this share of the smallest keypoint (a third of a grid cell).
 const MAX_COARSE_FEATURE: f64 = 0.33;
-/// Template levels sharper than this are not tried: sampling a 0.2-px edge is aliasing.
+/// Template levels sharper than this are not tried: sampling a 0.1-px edge is aliasing.
 const FINEST_BLUR_PX: f64 = 0.1;
 
 /// Image pixels the alignment uses, at most, all near the marker's edges: more add time faster
@@ -157,10 +157,7 @@ pub fn refine(
     start: &Homography,
     roi: &[[f64; 2]; 4],
 ) -> Refined {
-    let centre = [
-        roi.iter().map(|p| p[0]).sum::<f64>() / 4.0,
-        roi.iter().map(|p| p[1]).sum::<f64>() / 4.0,
-    ];
+    let centre = roi_centre(roi);
     let refused = |reason: String, report: Option<RefineReport>| Refined {
         homography: *start,
         covariance: None,
@@ -199,7 +196,7 @@ pub fn refine(
         noise: 2.0,
         iterations: 0,
     };
-    let Some(ppu) = aligner.pixels_per_unit() else {
+    let Some(ppu) = pixels_per_unit(lens, &start.0, centre) else {
         return refused("the start homography is degenerate".into(), None);
     };
     aligner.ppu = ppu;
@@ -247,7 +244,7 @@ pub fn refine(
     {
         aligner.clamp_variance(k);
         chosen = k;
-        // Coarse levels only bring the start closer: a fiftieth of a pixel is close enough.
+        // Coarse levels only bring the start closer: a twentieth of a pixel is close enough.
         if !aligner.gauss_newton(k, 2, 0.05) {
             return refused("the alignment diverged".into(), None);
         }
@@ -276,11 +273,11 @@ pub fn refine(
     let Some(end) = aligner.statistics(chosen) else {
         return refused("the marker left the image".into(), None);
     };
-    let mut at_start = aligner.clone();
-    at_start.hc = start_hc;
-    let before = at_start.statistics(chosen);
     let shift_px = aligner.shift_from(&start_hc);
     let side_px = aligner.roi_side_px();
+    let (blur_px, iterations) = (aligner.variance().sqrt(), aligner.iterations);
+    let end_hc = std::mem::replace(&mut aligner.hc, start_hc);
+    let before = aligner.statistics(chosen);
     let report = RefineReport {
         refined: true,
         kept_because: None,
@@ -288,9 +285,9 @@ pub fn refine(
         start_residual: before.as_ref().map_or(f64::NAN, |s| s.rms),
         outliers: end.outliers,
         shift_px,
-        blur_px: aligner.variance().sqrt(),
+        blur_px,
         noise: aligner.noise,
-        iterations: aligner.iterations,
+        iterations,
         time_ms: 0.0,
         render_ms: 0.0,
     };
@@ -321,7 +318,7 @@ pub fn refine(
         }
     }
     Refined {
-        homography: Homography(aligner.hc * translation([-centre[0], -centre[1]])),
+        homography: Homography(end_hc * translation([-centre[0], -centre[1]])),
         covariance: end.covariance,
         report,
         centre,
@@ -329,6 +326,22 @@ pub fn refine(
 }
 
 impl Refined {
+    /// The 2n × 2n covariance (x, y interleaved) of the image positions of marker points `at`
+    /// (marker units), from the alignment's covariance; `None` when refused.
+    pub fn point_covariance(&self, lens: Lens, at: &[[f64; 2]]) -> Option<DMatrix<f64>> {
+        let c = self.covariance?;
+        let mut j = DMatrix::zeros(2 * at.len(), 8);
+        for (i, &u) in at.iter().enumerate() {
+            let d = self.jacobian(lens, u);
+            for k in 0..8 {
+                j[(2 * i, k)] = d[0][k];
+                j[(2 * i + 1, k)] = d[1][k];
+            }
+        }
+        let c = DMatrix::from_fn(8, 8, |r, k| c[(r, k)]);
+        Some(&j * c * j.transpose())
+    }
+
     /// Derivative of the image position of marker point `u` (marker units) with respect to the 8
     /// update parameters the covariance is given in: rows x and y.
     pub fn jacobian(&self, lens: Lens, u: [f64; 2]) -> [[f64; 8]; 2] {
@@ -404,17 +417,9 @@ pub fn refine_marker(
 ) -> Result<Refined, crate::render::scene::RenderError> {
     let roi = family.roi_points();
     let roi: [[f64; 2]; 4] = std::array::from_fn(|i| roi[i]);
-    let centre = [
-        roi.iter().map(|p| p[0]).sum::<f64>() / 4.0,
-        roi.iter().map(|p| p[1]).sum::<f64>() / 4.0,
-    ];
-    let o = lens.to_image(start.apply(centre));
-    let x = lens.to_image(start.apply([centre[0] + 1.0, centre[1]]));
-    let y = lens.to_image(start.apply([centre[0], centre[1] + 1.0]));
-    let ppu = ((x[0] - o[0]) * (y[1] - o[1]) - (x[1] - o[1]) * (y[0] - o[0]))
-        .abs()
-        .sqrt();
-    let tpu = Template::texels_for(family, if ppu.is_finite() { ppu } else { 1.0 });
+    // A degenerate start is refused by `refine`; any density will do for it.
+    let ppu = pixels_per_unit(lens, &start.0, roi_centre(&roi)).unwrap_or(1.0);
+    let tpu = Template::texels_for(family, ppu);
     let clock = Stopwatch::start();
     let template = cache.get(family, id, tpu)?;
     let render_ms = clock.ms();
@@ -434,7 +439,6 @@ struct Pixel {
     rank: f64,
 }
 
-#[derive(Clone)]
 struct Aligner<'a> {
     image: &'a GrayImage,
     template: &'a Template,
@@ -469,7 +473,10 @@ struct Statistics {
     cost: f64,
     rms: f64,
     outliers: f64,
+    /// Of the 8 homography parameters (filled by `statistics` only: the steps do not need it).
     covariance: Option<SMatrix<f64, 8, 8>>,
+    /// Weighted residual variance per degree of freedom.
+    residual_variance: f64,
 }
 
 /// Parameters: 8 of the homography update, then gain, offset and the image's blur covariance.
@@ -493,15 +500,6 @@ impl Aligner<'_> {
     /// conditioned whatever the family's coordinates).
     fn centred(&self, u: [f64; 2]) -> [f64; 2] {
         [u[0] - self.centre[0], u[1] - self.centre[1]]
-    }
-
-    fn pixels_per_unit(&self) -> Option<f64> {
-        let o = self.pixel([0.0, 0.0]);
-        let x = self.pixel([1.0, 0.0]);
-        let y = self.pixel([0.0, 1.0]);
-        let cross = (x[0] - o[0]) * (y[1] - o[1]) - (x[1] - o[1]) * (y[0] - o[0]);
-        let s = cross.abs().sqrt();
-        (s.is_finite() && s > 1e-6).then_some(s)
     }
 
     fn roi_side_px(&self) -> f64 {
@@ -557,7 +555,7 @@ impl Aligner<'_> {
         let level = &self.template.levels[band_level];
         let threshold = EDGE * level.max_gradient;
         // Thinned by a hash of the position (a regular pattern would sample every edge at the
-        // same phase): first the box, to about four times the wanted count, then the band.
+        // same phase): first the box, to about twice the wanted count, then the band.
         let area = (bw * bh) as f64;
         let mut keep = (2.0 * MAX_PIXELS / area).min(1.0);
         let mut band = Vec::new();
@@ -793,15 +791,12 @@ impl Aligner<'_> {
             }
         }
         let nf = n as f64;
-        let covariance = a.try_inverse().map(|inv| {
-            let sigma2 = wsum / (nf - P as f64).max(1.0);
-            inv.fixed_view::<8, 8>(0, 0).into_owned() * sigma2
-        });
         let stats = Statistics {
             cost: cost / nf,
             rms: (sq / nf).sqrt(),
             outliers: outliers as f64 / nf,
-            covariance,
+            covariance: None,
+            residual_variance: wsum / (nf - P as f64).max(1.0),
         };
         Some(((a, SVector::from(g)), stats))
     }
@@ -874,7 +869,11 @@ impl Aligner<'_> {
         if !self.fit_photometric(k) {
             return None;
         }
-        self.normal_equations(k).map(|(_, s)| s)
+        let ((a, _), mut stats) = self.normal_equations(k)?;
+        stats.covariance = a
+            .try_inverse()
+            .map(|inv| inv.fixed_view::<8, 8>(0, 0).into_owned() * stats.residual_variance);
+        Some(stats)
     }
 }
 
@@ -895,6 +894,24 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
         }
     }
     partial.iter().sum::<f64>() + tail
+}
+
+/// The mean of the ROI's four points, marker units.
+fn roi_centre(roi: &[[f64; 2]; 4]) -> [f64; 2] {
+    [
+        roi.iter().map(|p| p[0]).sum::<f64>() / 4.0,
+        roi.iter().map(|p| p[1]).sum::<f64>() / 4.0,
+    ]
+}
+
+/// Image pixels per marker unit at marker point `at` through `h` (marker units → lens plane):
+/// the square root of the local area ratio; `None` for a degenerate homography.
+fn pixels_per_unit(lens: Lens, h: &Matrix3<f64>, at: [f64; 2]) -> Option<f64> {
+    let pixel = |du: f64, dv: f64| lens.to_image(apply(h, [at[0] + du, at[1] + dv]));
+    let (o, x, y) = (pixel(0.0, 0.0), pixel(1.0, 0.0), pixel(0.0, 1.0));
+    let cross = (x[0] - o[0]) * (y[1] - o[1]) - (x[1] - o[1]) * (y[0] - o[0]);
+    let s = cross.abs().sqrt();
+    (s.is_finite() && s > 1e-6).then_some(s)
 }
 
 /// A well-mixed number in [0, 1) from a position (SplitMix64's finaliser).

@@ -16,7 +16,6 @@ use crate::image::GrayImage;
 use crate::pose::{covariance, marker_plane_points, solve_planar, PnpSolution, PointNoise};
 use burn::tensor::activation::softmax;
 use burn::tensor::{Device, Tensor, TensorData};
-use nalgebra::DMatrix;
 use serde::Serialize;
 use std::path::Path;
 
@@ -141,12 +140,11 @@ impl Stage2 {
         let mut result = result?;
         let lens = camera.map_or(Lens::Pixels, |(c, _)| Lens::Camera(c));
         let kps = self.family.keypoints();
-        let mut point_noise = None;
+        let canonical: Vec<[f64; 2]> = result.keypoints.iter().map(|k| kps[k.index].pos).collect();
+        let mut aligned = None;
         if options.refine != RefineMode::None {
             // One homography through all keypoints, in the lens plane: the family's geometry
             // replaces each keypoint's own noise.
-            let canonical: Vec<[f64; 2]> =
-                result.keypoints.iter().map(|k| kps[k.index].pos).collect();
             let plane: Vec<[f64; 2]> = result
                 .keypoints
                 .iter()
@@ -157,11 +155,11 @@ impl Stage2 {
                     if let Ok(refined) =
                         refine_marker(image, &self.family, result.id, lens, &h, &self.templates)
                     {
+                        result.refinement = Some(refined.report.clone());
                         if refined.report.refined {
                             h = refined.homography;
-                            point_noise = refined.covariance.map(|c| (refined.clone(), c));
+                            aligned = Some(refined);
                         }
-                        result.refinement = Some(refined.report);
                     }
                 }
                 for k in &mut result.keypoints {
@@ -172,25 +170,13 @@ impl Stage2 {
             }
         }
         if let Some((camera, side_m)) = camera {
-            let canonical: Vec<[f64; 2]> =
-                result.keypoints.iter().map(|k| kps[k.index].pos).collect();
             let object = marker_plane_points(&self.family, side_m, &canonical);
             let pixels: Vec<[f64; 2]> = result.keypoints.iter().map(|k| [k.x, k.y]).collect();
             result.pose = solve_planar(camera, &object, &pixels).ok();
-            if let (Some(pose), Some((refined, c))) = (result.pose.as_mut(), point_noise) {
+            let points = aligned.and_then(|a| a.point_covariance(lens, &canonical));
+            if let (Some(pose), Some(points)) = (result.pose.as_mut(), points) {
                 // The points all come from one aligned homography: their noise is the
                 // alignment's, not the (near-zero) reprojection residual.
-                let n = canonical.len();
-                let mut j = DMatrix::zeros(2 * n, 8);
-                for (i, &u) in canonical.iter().enumerate() {
-                    let d = refined.jacobian(lens, u);
-                    for k in 0..8 {
-                        j[(2 * i, k)] = d[0][k];
-                        j[(2 * i + 1, k)] = d[1][k];
-                    }
-                }
-                let c = DMatrix::from_fn(8, 8, |r, k| c[(r, k)]);
-                let points = &j * c * j.transpose();
                 pose.covariance =
                     covariance(camera, &object, &pose.pose, PointNoise::Covariance(&points));
             }
