@@ -1,16 +1,22 @@
 //! `detect` and `detect-set`: the learned stage-2 detector on images.
 
-use super::common::{load_family, write_output};
-use super::error::{bad_input, failure, Classify, Concerning, Result};
+use super::common::{load_family, progress_bar, write_output};
+use super::error::{bad_input, failure, Classify, CliError, Concerning, Result};
 use anyhow::Context;
 use clap::Args;
 use std::path::{Path, PathBuf};
-use tagsmith::detect::annotate::annotate;
+use tagsmith::detect::annotate::{annotate, annotate_all, Overlay};
+use tagsmith::detect::detector::{FamilyReader, SHIPPED_STAGE1};
 use tagsmith::detect::refine::RefineMode;
+use tagsmith::detect::stage1::group::GroupOptions;
+use tagsmith::detect::stage1::Stage1;
+use tagsmith::detect::stage2::shipped_families;
 use tagsmith::detect::stage2::{ReadOptions, Stage2};
 use tagsmith::detect::MarkerReport;
+use tagsmith::detect::{BenchDetector, DetectionsFile, Detector, Found, ImageDetections};
 use tagsmith::family::Family;
 use tagsmith::geometry::Camera;
+use tagsmith::image::GrayImage;
 
 /// Passes beyond the second rarely move a keypoint; each costs a full network run, and a million
 /// of them made `detect` look hung.
@@ -20,23 +26,29 @@ fn iterations() -> clap::builder::RangedU64ValueParser<usize> {
 
 #[derive(Args, Debug)]
 pub struct DetectArgs {
-    /// Image: PNG, JPEG, BMP, TIFF, WebP or PNM (colour is converted to gray).
-    pub image: PathBuf,
-    /// Built-in family name or path to a family JSON file.
+    /// Images: PNG, JPEG, BMP, TIFF, WebP or PNM (colour is converted to gray).
+    #[arg(required = true)]
+    pub images: Vec<PathBuf>,
+    /// Family to detect: built-in name or path to a family JSON file; repeat for several
+    /// [default: every built-in family with shipped weights].
     #[arg(long)]
-    pub family: String,
-    /// The marker's ROI: its 4 ROI points in the image, x1,y1,…,x4,y4 (any starting corner, in
-    /// the family's order around the marker: clockwise in the image for square markers).
+    pub family: Vec<String>,
+    /// Read one known ROI instead of searching the image (one image, one family): its 4 ROI
+    /// points x1,y1,…,x4,y4 (any starting corner, in the family's order around the marker:
+    /// clockwise in the image for square markers).
     #[arg(long)]
-    pub roi: String,
+    pub roi: Option<String>,
     /// Camera intrinsics: JSON ({"width","height","fx","fy","cx","cy","distortion"}) or OpenCV
     /// YAML [default: guessed from the image size and a 70° diagonal field of view].
     #[arg(long)]
     pub camera: Option<PathBuf>,
-    /// Model file [default: the shipped weights of the family].
+    /// Stage-2 model file (one family) [default: the shipped weights of the family].
     #[arg(long)]
     pub model: Option<PathBuf>,
-    /// Marker size in mm (ROI side) for the pose [default: the family's print size].
+    /// Stage-1 model file [default: the shipped one for square families].
+    #[arg(long)]
+    pub stage1: Option<PathBuf>,
+    /// Marker size in mm (ROI side) for the pose [default: each family's print size].
     #[arg(long)]
     pub side_mm: Option<f64>,
     /// Stage-2 passes (the second starts from the first's keypoints) [range: 1..=10].
@@ -47,7 +59,15 @@ pub struct DetectArgs {
     /// the decoded ID).
     #[arg(long, default_value = "full", value_parser = refine_mode())]
     pub refine: RefineMode,
-    /// Write the image with the ROI, outline and keypoints drawn on it (PNG).
+    /// Stage 1's corner confidence threshold (lower finds more, costs more stage-2 reads)
+    /// [range: (0, 1)].
+    #[arg(long, default_value_t = GroupOptions::default().corner, value_parser = unit_interval())]
+    pub corner_threshold: f32,
+    /// Write the detections file (the harness's format, for `tagsmith eval score`).
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Draw ROIs, outlines and keypoints: with --roi, the PNG to write; otherwise a folder that
+    /// receives IMAGE-STEM.png for each image.
     #[arg(long)]
     pub annotate: Option<PathBuf>,
     /// Refuse images larger than this many pixels (width × height) before decoding them.
@@ -55,25 +75,59 @@ pub struct DetectArgs {
     pub max_pixels: u64,
 }
 
+fn unit_interval() -> impl clap::builder::TypedValueParser<Value = f32> {
+    use clap::builder::TypedValueParser;
+    clap::builder::StringValueParser::new().try_map(|s| {
+        let v: f32 = s.parse().map_err(|e| format!("{e}"))?;
+        if v > 0.0 && v < 1.0 {
+            Ok(v)
+        } else {
+            Err(format!("{v} is not in (0, 1)"))
+        }
+    })
+}
+
 impl DetectArgs {
     pub fn run(self) -> Result<()> {
-        let family = load_family(&self.family)?;
-        let roi = parse_roi(&self.roi)?;
-        let limits = tagsmith::image::Limits {
-            max_pixels: self.max_pixels,
-        };
-        let image = tagsmith::image::read(&self.image, &limits)?;
-        let (camera, camera_source) = match &self.camera {
-            Some(path) => (load_camera(path, (image.width, image.height))?, "given"),
-            None => (
-                Camera::from_diagonal_fov(image.width, image.height, 70.0)?,
-                "guessed (70° diagonal field of view)",
-            ),
-        };
+        if self.roi.is_some() {
+            self.run_roi()
+        } else {
+            self.run_search()
+        }
+    }
+
+    fn side_mm(&self, family: &Family) -> Result<f64> {
         let side_mm = self.side_mm.unwrap_or(family.spec().print.marker_side_mm);
         if side_mm.is_nan() || side_mm <= 0.0 {
             return Err(bad_input!("--side-mm must be positive"));
         }
+        Ok(side_mm)
+    }
+
+    fn limits(&self) -> tagsmith::image::Limits {
+        tagsmith::image::Limits {
+            max_pixels: self.max_pixels,
+        }
+    }
+
+    /// Stage 2 on one given ROI.
+    fn run_roi(self) -> Result<()> {
+        let [image_path] = &self.images[..] else {
+            return Err(bad_input!(
+                "--roi reads one image; {} were given",
+                self.images.len()
+            ));
+        };
+        let [family] = &self.family[..] else {
+            return Err(bad_input!(
+                "--roi reads one family: give exactly one --family"
+            ));
+        };
+        let family = load_family(family)?;
+        let roi = parse_roi(self.roi.as_deref().unwrap_or_default())?;
+        let image = tagsmith::image::read(image_path, &self.limits())?;
+        let (camera, camera_source) = self.camera_for(&image)?;
+        let side_mm = self.side_mm(&family)?;
         let model = load_model(self.model.as_deref(), &family)?;
         let options = ReadOptions {
             iterations: self.iterations,
@@ -98,11 +152,144 @@ impl DetectArgs {
         if found.is_none() {
             return Err(failure!(
                 "{}: no {} marker decoded in the ROI",
-                self.image.display(),
+                image_path.display(),
                 family.name()
             ));
         }
         Ok(())
+    }
+
+    fn camera_for(&self, image: &GrayImage) -> Result<(Camera, &'static str)> {
+        Ok(match &self.camera {
+            Some(path) => (load_camera(path, (image.width, image.height))?, "given"),
+            None => (
+                Camera::from_diagonal_fov(image.width, image.height, 70.0)?,
+                "guessed (70° diagonal field of view)",
+            ),
+        })
+    }
+
+    /// The full detector on every image.
+    fn run_search(self) -> Result<()> {
+        let names: Vec<String> = if self.family.is_empty() {
+            shipped_families().map(String::from).collect()
+        } else {
+            self.family.clone()
+        };
+        if self.model.is_some() && names.len() != 1 {
+            return Err(bad_input!(
+                "--model is one family's stage 2: give exactly one --family"
+            ));
+        }
+        let mut readers = Vec::new();
+        for name in &names {
+            let family = load_family(name)?;
+            let side_mm = self.side_mm(&family)?;
+            let stage2 = load_model(self.model.as_deref(), &family)?;
+            let mut reader = FamilyReader::new(family, stage2);
+            reader.side_m = side_mm / 1000.0;
+            readers.push(reader);
+        }
+        let stage1 = match &self.stage1 {
+            Some(path) => Stage1::load(path)?,
+            None => Stage1::from_bytes(SHIPPED_STAGE1, "shipped stage-1 model")?,
+        };
+        let mut detector = Detector::new(stage1, readers).failure()?;
+        detector.options.read = ReadOptions {
+            iterations: self.iterations,
+            refine: self.refine,
+        };
+        detector.options.propose.group.corner = self.corner_threshold;
+        if let Some(dir) = &self.annotate {
+            std::fs::create_dir_all(dir)
+                .with_context(|| format!("cannot create the folder {}", dir.display()))
+                .failure()?;
+        }
+        let bar = progress_bar(
+            self.images.len() as u64,
+            "{bar:30} {pos}/{len} {msg} [{elapsed_precise}]",
+        );
+        let mut file = DetectionsFile {
+            detector: BenchDetector::name(&detector),
+            images: Vec::new(),
+        };
+        let mut unreadable = Vec::new();
+        for path in &self.images {
+            bar.set_message(path.display().to_string());
+            let image = match tagsmith::image::read(path, &self.limits()) {
+                Ok(image) => image,
+                Err(e) => {
+                    let e = CliError::from(e);
+                    bar.suspend(|| eprintln!("error: {e:#}"));
+                    unreadable.push(e);
+                    bar.inc(1);
+                    continue;
+                }
+            };
+            if self.camera.is_some() {
+                detector.camera = Some(self.camera_for(&image)?.0);
+            }
+            let clock = std::time::Instant::now();
+            let (found, timings) = detector.detect(&image);
+            let time_ms = clock.elapsed().as_secs_f64() * 1e3;
+            let listed: Vec<String> = found
+                .iter()
+                .map(|f| format!("{} #{}", f.family, f.marker.id))
+                .collect();
+            let line = format!(
+                "{}: {} marker{} {}in {time_ms:.0} ms (stage 1 {:.0} ms, {} ROI{}; stage 2 {:.0} ms)",
+                path.display(),
+                found.len(),
+                if found.len() == 1 { "" } else { "s" },
+                if listed.is_empty() {
+                    String::new()
+                } else {
+                    format!("({}) ", listed.join(", "))
+                },
+                timings.stage1_ms,
+                timings.proposals,
+                if timings.proposals == 1 { "" } else { "s" },
+                timings.stage2_ms,
+            );
+            bar.suspend(|| println!("{line}"));
+            if let Some(dir) = &self.annotate {
+                let overlays: Vec<Overlay> = found
+                    .iter()
+                    .map(|f| Overlay {
+                        roi: &f.proposal.corners,
+                        corners: Some(&f.marker.corners),
+                        keypoints: f
+                            .marker
+                            .keypoints
+                            .iter()
+                            .map(|k| (k.x, k.y, k.category))
+                            .collect(),
+                    })
+                    .collect();
+                let png = annotate_all(&image, &overlays).failure()?;
+                let stem = path.file_stem().unwrap_or_default().to_string_lossy();
+                write_output(&dir.join(format!("{stem}.png")), &png)?;
+            }
+            file.images.push(ImageDetections {
+                file: path.display().to_string(),
+                time_ms,
+                detections: found.iter().map(Found::detection).collect(),
+            });
+            bar.inc(1);
+        }
+        bar.finish_and_clear();
+        if let Some(path) = &self.json {
+            let json = serde_json::to_string_pretty(&file).failure()?;
+            write_output(path, json.as_bytes())?;
+        }
+        match unreadable.len() {
+            0 => Ok(()),
+            1 => Err(unreadable.pop().expect("one")),
+            n => Err(bad_input!(
+                "{n} of {} images could not be read (listed above)",
+                self.images.len()
+            )),
+        }
     }
 }
 
@@ -129,6 +316,13 @@ pub struct DetectSetArgs {
     /// Only the protocol's Normal images (≤ 50 cm, ≤ 60°).
     #[arg(long)]
     pub normal_only: bool,
+    /// The full detector: stage 1 finds the ROIs in the whole image (instead of stage 2 reading
+    /// the true ROIs moved by --roi-noise).
+    #[arg(long)]
+    pub full: bool,
+    /// Stage-1 model file for --full [default: the shipped one].
+    #[arg(long)]
+    pub stage1: Option<PathBuf>,
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
 }
@@ -145,21 +339,39 @@ impl DetectSetArgs {
             return Err(bad_input!("--roi-noise must be in [0, 0.5)"));
         }
         let model = load_model(self.model.as_deref(), &family)?;
-        let mut detector = Stage2FromTruth::new(
-            model,
-            self.roi_noise,
-            ReadOptions {
-                iterations: self.iterations,
-                refine: self.refine,
-            },
-            s.camera,
-            s.side_m,
-            self.seed,
-        );
+        let read = ReadOptions {
+            iterations: self.iterations,
+            refine: self.refine,
+        };
         let normal_only = self.normal_only;
         let include = |img: &set::BenchImage| {
             !normal_only || matches!(img.group, Group::Protocol { normal: true, .. })
         };
+        if self.full {
+            let stage1 = match &self.stage1 {
+                Some(path) => Stage1::load(path)?,
+                None => Stage1::from_bytes(SHIPPED_STAGE1, "shipped stage-1 model")?,
+            };
+            let mut reader = FamilyReader::new(family, model);
+            reader.side_m = s.side_m;
+            let mut detector = Detector::new(stage1, vec![reader]).failure()?;
+            detector.camera = Some(s.camera);
+            detector.options.read = read;
+            let file = set::run_detector(&self.set, &s, &mut detector, &include)?;
+            let json = serde_json::to_string_pretty(&file).failure()?;
+            write_output(&self.output, json.as_bytes())?;
+            let mut times: Vec<f64> = file.images.iter().map(|i| i.time_ms).collect();
+            times.sort_by(f64::total_cmp);
+            println!(
+                "{} images, full detector: median {:.1} ms per image; wrote {}",
+                file.images.len(),
+                times.get(times.len() / 2).copied().unwrap_or(f64::NAN),
+                self.output.display()
+            );
+            return Ok(());
+        }
+        let mut detector =
+            Stage2FromTruth::new(model, self.roi_noise, read, s.camera, s.side_m, self.seed);
         let file = set::run_detector(&self.set, &s, &mut detector, &include)?;
         let times: Vec<f64> = file
             .images
@@ -275,11 +487,14 @@ mod tests {
         let image = dir.path().join("broken.png");
         std::fs::write(&image, b"\x89PNG\r\n\x1a\n").unwrap();
         let args = DetectArgs {
-            image: image.clone(),
-            family: "apriltag-36h11".into(),
-            roi: "0,0,10,0,10,10,0,10".into(),
+            images: vec![image.clone()],
+            family: vec!["apriltag-36h11".into()],
+            roi: Some("0,0,10,0,10,10,0,10".into()),
             camera: None,
             model: None,
+            stage1: None,
+            corner_threshold: 0.3,
+            json: None,
             side_mm: None,
             iterations: 2,
             refine: RefineMode::Full,

@@ -158,7 +158,8 @@ impl From<SynthError> for CliError {
             SynthError::Render(e) => e.into(),
             SynthError::ImageSize { .. }
             | SynthError::Geometry(_)
-            | SynthError::DegeneratePlacement { .. } => CliError::bad_input(e),
+            | SynthError::DegeneratePlacement { .. }
+            | SynthError::NoFamily => CliError::bad_input(e),
         }
     }
 }

@@ -1,17 +1,24 @@
-//! `train`: the learned stage-2 detector's training.
+//! `train`: the learned detector's training, stage 2 (keypoints, per family) and stage 1 (ROIs,
+//! one model for every square family).
 
 use super::common::{load_family, positive_f64_up_to, progress_bar};
-use super::error::Result;
+use super::error::{CliError, Result};
 use clap::builder::RangedU64ValueParser;
 use clap::{Args, ValueEnum};
 use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
-use tagsmith::train::{self, Event, TrainConfig};
+use std::sync::Arc;
+use tagsmith::train::stage::TrainStage;
+use tagsmith::train::stage1::RoiStage;
+use tagsmith::train::stage2::KeypointStage;
+use tagsmith::train::{self, Event, StageEvent, StageReport, TrainConfig};
 
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Stage {
     /// Stage 2: the keypoint network on rectified patches.
     Keypoints,
+    /// Stage 1: the ROI network on whole scenes; without a family, for every square family.
+    Roi,
 }
 
 /// Bounds of the sizes a run may ask for. Memory grows with batch × width² (a batch of 100 000
@@ -35,8 +42,9 @@ fn in_range(range: std::ops::RangeInclusive<u64>) -> RangedU64ValueParser<usize>
 
 #[derive(Args, Debug)]
 pub struct TrainArgs {
-    /// Built-in family name or path to a family JSON file.
-    pub family: String,
+    /// Built-in family name or path to a family JSON file (optional with `--stage roi`: without
+    /// one, stage 1 is trained for every square family and random designs).
+    pub family: Option<String>,
     #[arg(long, value_enum)]
     pub stage: Stage,
     /// Optimiser steps [range: 1..=10000000].
@@ -47,7 +55,7 @@ pub struct TrainArgs {
     #[arg(long, default_value_t = TrainConfig::default().batch,
           value_parser = in_range(1..=MAX_BATCH))]
     pub batch: usize,
-    /// Output folder (checkpoint, model, report) [default: runs/FAMILY-keypoints].
+    /// Output folder (checkpoint, model, report) [default: runs/FAMILY-keypoints, runs/roi].
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Continue from the output folder's checkpoint.
@@ -85,8 +93,7 @@ pub struct TrainArgs {
 
 impl TrainArgs {
     pub fn run(self) -> Result<()> {
-        let Stage::Keypoints = self.stage;
-        let family = load_family(&self.family)?;
+        let family = self.family.as_deref().map(load_family).transpose()?;
         let config = TrainConfig {
             steps: self.steps,
             batch: self.batch,
@@ -99,96 +106,152 @@ impl TrainArgs {
             workers: self.workers,
             ..TrainConfig::default()
         };
-        let out = self
-            .out
-            .unwrap_or_else(|| PathBuf::from(format!("runs/{}-keypoints", family.name())));
-        let bar = progress_bar(
-            config.steps,
-            "{bar:30} {pos}/{len} {msg} [{elapsed_precise}, ETA {eta_precise}]",
-        );
-        // Without a terminal (a log file) the bar is hidden: print plain lines instead.
-        let plain = bar.is_hidden();
-        let say = |line: String| {
-            if plain {
-                eprintln!("{line}");
-            } else {
-                bar.println(line);
-            }
-        };
         let stop = AtomicBool::new(false);
-        let report = train::train_keypoints(
-            &family,
-            &config,
-            &out,
-            self.resume,
-            &stop,
-            &mut |event| {
-                match event {
-            Event::Started {
-                family,
-                first_step,
-                params,
-                macs,
-                ..
-            } => {
-                bar.set_position(first_step);
-                bar.reset_eta();
-                say(format!(
-                    "training {family}: {params} parameters, {:.1} MMAC per patch{}",
-                    macs as f64 / 1e6,
-                    if first_step > 0 {
-                        format!(", resumed at step {first_step}")
-                    } else {
-                        String::new()
-                    }
-                ));
+        match self.stage {
+            Stage::Keypoints => {
+                let family = family.ok_or_else(|| {
+                    CliError::bad_input("--stage keypoints needs a FAMILY to train for")
+                })?;
+                let out = self
+                    .out
+                    .unwrap_or_else(|| PathBuf::from(format!("runs/{}-keypoints", family.name())));
+                let stage = Arc::new(KeypointStage::new(&family, config.width));
+                with_progress::<KeypointStage>(
+                    &config,
+                    |on_event| train::train(stage, &config, &out, self.resume, &stop, on_event),
+                    |l: &LossTerms2| {
+                        format!(
+                            "loss {:.3} (conf {:.3} off {:.3} mask {:.3} tpl {:.3})",
+                            l.total, l.confidence, l.offset, l.mask, l.template
+                        )
+                    },
+                    |m: &Metrics2| {
+                        format!(
+                        "keypoint recall {:.2} %, symbol accuracy {:.2} %, ID accuracy {:.1} % \
+                         (wrong {:.1} %), keypoint error RMS {:.2} px (median {:.2})",
+                        100.0 * m.keypoint_recall,
+                        100.0 * m.symbol_accuracy,
+                        100.0 * m.id_accuracy,
+                        100.0 * m.wrong_id_rate,
+                        m.keypoint_rms_px,
+                        m.keypoint_median_px
+                    )
+                    },
+                )
             }
-            Event::Step {
-                step,
-                loss,
-                samples_per_s,
-                data_wait,
-            } => {
-                bar.set_position(step);
-                let message = format!(
-                    "loss {:.3} (conf {:.3} off {:.3} mask {:.3} tpl {:.3}) {:.0} samples/s, data wait {:.0} %",
-                    loss.total,
-                    loss.confidence,
-                    loss.offset,
-                    loss.mask,
-                    loss.template,
-                    samples_per_s,
-                    100.0 * data_wait
-                );
-                if plain && step.is_multiple_of(100) {
-                    say(format!("step {step}/{}: {message}", config.steps));
-                }
-                bar.set_message(message);
+            Stage::Roi => {
+                let stage = match &family {
+                    Some(f) => RoiStage::for_families(vec![f.clone()], config.width),
+                    None => RoiStage::new(config.width).map_err(CliError::failure)?,
+                };
+                let out = self.out.unwrap_or_else(|| match &family {
+                    Some(f) => PathBuf::from(format!("runs/{}-roi", f.name())),
+                    None => PathBuf::from("runs/roi"),
+                });
+                with_progress::<RoiStage>(
+                    &config,
+                    |on_event| {
+                        train::train(Arc::new(stage), &config, &out, self.resume, &stop, on_event)
+                    },
+                    |l: &LossTerms1| {
+                        format!(
+                            "loss {:.3} (heat {:.3} off {:.3} dir {:.3} mask {:.3})",
+                            l.total, l.heat, l.offset, l.direction, l.mask
+                        )
+                    },
+                    |m: &Metrics1| {
+                        format!(
+                            "ROI recall {:.1} %, precision {:.1} %, corner error median {:.2} px, \
+                         {:.2} proposals per scene",
+                            100.0 * m.recall,
+                            100.0 * m.precision,
+                            m.corner_median_px,
+                            m.proposals_per_scene
+                        )
+                    },
+                )
             }
-            Event::Validated { step, metrics } => say(format!(
-                "step {step}: keypoint recall {:.2} %, symbol accuracy {:.2} %, ID accuracy {:.1} % \
-                 (wrong {:.1} %), keypoint error RMS {:.2} px (median {:.2})",
-                100.0 * metrics.keypoint_recall,
-                100.0 * metrics.symbol_accuracy,
-                100.0 * metrics.id_accuracy,
-                100.0 * metrics.wrong_id_rate,
-                metrics.keypoint_rms_px,
-                metrics.keypoint_median_px
-            )),
-            Event::Checkpointed { .. } => {}
         }
-            },
-        )?;
-        bar.finish();
-        println!(
-            "{} steps in {:.0} s ({:.1} ms/step, {:.0} samples/s, data wait {:.1} %); model: {}",
-            report.steps,
-            report.wall_s,
-            report.mean_step_ms,
-            report.samples_per_s,
-            100.0 * report.data_wait_fraction,
-            report.model_file
-        );
-        Ok(())
     }
+}
+
+type LossTerms1 = <RoiStage as TrainStage>::Terms;
+type Metrics1 = <RoiStage as TrainStage>::Metrics;
+type LossTerms2 = <KeypointStage as TrainStage>::Terms;
+type Metrics2 = <KeypointStage as TrainStage>::Metrics;
+
+/// Runs `train` with a progress bar (plain lines without a terminal), then prints the summary.
+fn with_progress<S: TrainStage>(
+    config: &TrainConfig,
+    train: impl FnOnce(
+        &mut dyn FnMut(StageEvent<S>),
+    ) -> std::result::Result<StageReport<S>, train::TrainError>,
+    loss: impl Fn(&S::Terms) -> String,
+    metrics: impl Fn(&S::Metrics) -> String,
+) -> Result<()> {
+    let bar = progress_bar(
+        config.steps,
+        "{bar:30} {pos}/{len} {msg} [{elapsed_precise}, ETA {eta_precise}]",
+    );
+    // Without a terminal (a log file) the bar is hidden: print plain lines instead.
+    let plain = bar.is_hidden();
+    let say = |line: String| {
+        if plain {
+            eprintln!("{line}");
+        } else {
+            bar.println(line);
+        }
+    };
+    let report = train(&mut |event| match event {
+        Event::Started {
+            family,
+            first_step,
+            params,
+            macs,
+            ..
+        } => {
+            bar.set_position(first_step);
+            bar.reset_eta();
+            say(format!(
+                "training {family}: {params} parameters, {:.1} MMAC per input{}",
+                macs as f64 / 1e6,
+                if first_step > 0 {
+                    format!(", resumed at step {first_step}")
+                } else {
+                    String::new()
+                }
+            ));
+        }
+        Event::Step {
+            step,
+            loss: l,
+            samples_per_s,
+            data_wait,
+        } => {
+            bar.set_position(step);
+            let message = format!(
+                "{} {:.0} samples/s, data wait {:.0} %",
+                loss(&l),
+                samples_per_s,
+                100.0 * data_wait
+            );
+            if plain && step.is_multiple_of(100) {
+                say(format!("step {step}/{}: {message}", config.steps));
+            }
+            bar.set_message(message);
+        }
+        Event::Validated { step, metrics: m } => say(format!("step {step}: {}", metrics(&m))),
+        Event::Checkpointed { .. } => {}
+    })?;
+    bar.finish();
+    println!(
+        "{} steps in {:.0} s ({:.1} ms/step, {:.0} samples/s, data wait {:.1} %); model: {}",
+        report.steps,
+        report.wall_s,
+        report.mean_step_ms,
+        report.samples_per_s,
+        100.0 * report.data_wait_fraction,
+        report.model_file
+    );
+    Ok(())
 }

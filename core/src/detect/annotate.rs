@@ -15,13 +15,33 @@ const PALETTE: [(u8, u8, u8); 6] = [
     (240, 50, 230),
 ];
 
-/// PNG bytes of `image` with the overlays; `keypoints` are (x, y, category).
+/// What is drawn for one marker: the ROI it was read from, its outline when decoded, its
+/// keypoints as (x, y, category).
+pub struct Overlay<'a> {
+    pub roi: &'a [[f64; 2]; 4],
+    pub corners: Option<&'a [[f64; 2]; 4]>,
+    pub keypoints: Vec<(f64, f64, usize)>,
+}
+
+/// PNG bytes of `image` with the overlays of one ROI; `keypoints` are (x, y, category).
 pub fn annotate(
     image: &GrayImage,
     roi: &[[f64; 2]; 4],
     corners: Option<&[[f64; 2]; 4]>,
     keypoints: &[(f64, f64, usize)],
 ) -> Result<Vec<u8>, String> {
+    annotate_all(
+        image,
+        &[Overlay {
+            roi,
+            corners,
+            keypoints: keypoints.to_vec(),
+        }],
+    )
+}
+
+/// PNG bytes of `image` with every marker's overlays.
+pub fn annotate_all(image: &GrayImage, overlays: &[Overlay]) -> Result<Vec<u8>, String> {
     let mut pixmap = Pixmap::new(image.width, image.height).ok_or("the image is empty")?;
     for (px, &g) in pixmap.pixels_mut().iter_mut().zip(&image.pixels) {
         *px = tiny_skia::ColorU8::from_rgba(g, g, g, 255).premultiply();
@@ -46,45 +66,49 @@ pub fn annotate(
         pb.close();
         pb.finish()
     };
-    if let Some(path) = polygon(roi) {
-        pixmap.stroke_path(
-            &path,
-            &paint(255, 220, 0),
-            &stroke,
-            Transform::identity(),
-            None,
-        );
-    }
-    if let Some(c) = corners {
-        if let Some(path) = polygon(c) {
+    for o in overlays {
+        if let Some(path) = polygon(o.roi) {
             pixmap.stroke_path(
                 &path,
-                &paint(0, 200, 60),
+                &paint(255, 220, 0),
                 &stroke,
                 Transform::identity(),
                 None,
             );
         }
-        if let Some(ring) = PathBuilder::from_circle(c[0][0] as f32, c[0][1] as f32, 5.0 * scale) {
-            pixmap.stroke_path(
-                &ring,
-                &paint(255, 0, 0),
-                &stroke,
-                Transform::identity(),
-                None,
-            );
+        if let Some(c) = o.corners {
+            if let Some(path) = polygon(c) {
+                pixmap.stroke_path(
+                    &path,
+                    &paint(0, 200, 60),
+                    &stroke,
+                    Transform::identity(),
+                    None,
+                );
+            }
+            if let Some(ring) =
+                PathBuilder::from_circle(c[0][0] as f32, c[0][1] as f32, 5.0 * scale)
+            {
+                pixmap.stroke_path(
+                    &ring,
+                    &paint(255, 0, 0),
+                    &stroke,
+                    Transform::identity(),
+                    None,
+                );
+            }
         }
-    }
-    for &(x, y, category) in keypoints {
-        let (r, g, b) = PALETTE[category % PALETTE.len()];
-        if let Some(dot) = PathBuilder::from_circle(x as f32, y as f32, 2.0 * scale) {
-            pixmap.fill_path(
-                &dot,
-                &paint(r, g, b),
-                FillRule::Winding,
-                Transform::identity(),
-                None,
-            );
+        for &(x, y, category) in &o.keypoints {
+            let (r, g, b) = PALETTE[category % PALETTE.len()];
+            if let Some(dot) = PathBuilder::from_circle(x as f32, y as f32, 2.0 * scale) {
+                pixmap.fill_path(
+                    &dot,
+                    &paint(r, g, b),
+                    FillRule::Winding,
+                    Transform::identity(),
+                    None,
+                );
+            }
         }
     }
     encode_png(&pixmap).map_err(|e| e.to_string())

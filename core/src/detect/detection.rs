@@ -5,13 +5,49 @@ use crate::image::GrayImage;
 use crate::pose::PoseJson;
 use serde::{Deserialize, Serialize};
 
-/// One detected marker.
+/// One detected marker. `id`, `corners` (the family's ROI points 0–3, canonical order) and
+/// `pose` are what every detector reports and the harness scores; the learned detector adds
+/// the family, the keypoints and its scores.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Detection {
     pub id: usize,
     pub corners: [[f64; 2]; 4],
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pose: Option<PoseJson>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub family: Option<String>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub keypoints: Vec<DetectedKeypoint>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scores: Option<Scores>,
+}
+
+impl Detection {
+    /// A detection with only what every detector reports.
+    pub fn plain(id: usize, corners: [[f64; 2]; 4], pose: Option<PoseJson>) -> Self {
+        Self {
+            id,
+            corners,
+            pose,
+            family: None,
+            keypoints: Vec::new(),
+            scores: None,
+        }
+    }
+}
+
+/// How sure the learned detector is of a marker.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Scores {
+    /// Stage 1's ROI score (mean corner confidence × mask cover), 0–1.
+    pub roi: f64,
+    /// Mean confidence of the keypoints stage 2 matched to the template, 0–1.
+    pub keypoints: f64,
+    /// Symbols the codebook corrected.
+    pub corrected_errors: usize,
+    /// Reprojection error of the pose, pixels (absent without a pose).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reprojection_rms_px: Option<f64>,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -29,10 +65,10 @@ pub struct DetectionsFile {
 }
 
 /// What the learned detector (and any in-process baseline) implements to be benchmarked.
-pub trait Detector {
+pub trait BenchDetector {
     fn name(&self) -> String;
     fn detect(&mut self, image: &GrayImage) -> Vec<Detection>;
-    /// The harness shows each image's ground truth before [`Detector::detect`], untimed. Real
+    /// The harness shows each image's ground truth before [`BenchDetector::detect`], untimed. Real
     /// detectors ignore it; a stage measured on its own (stage 2 from perturbed true ROIs, in
     /// place of stage 1) takes its input from it.
     fn observe_truth(&mut self, _truth: &crate::synth::Truth) {}

@@ -1,12 +1,19 @@
 //! The learned detector: its stages by name and what they hand on. Stage 2 ([`stage2`]) reads a
-//! marker from its ROI; [`Detection`] is what any detector reports, and [`Detector`] is the
+//! marker from its ROI; [`Detection`] is what any detector reports, and [`BenchDetector`] is the
 //! interface the evaluation harness runs.
 
 pub mod annotate;
 mod detection;
+#[cfg(feature = "learn")]
+pub mod detector;
 pub mod refine;
 mod report;
+pub mod stage1;
 pub mod stage2;
 
-pub use detection::{DetectedKeypoint, Detection, DetectionsFile, Detector, ImageDetections};
+pub use detection::{
+    BenchDetector, DetectedKeypoint, Detection, DetectionsFile, ImageDetections, Scores,
+};
+#[cfg(feature = "learn")]
+pub use detector::{Detector, DetectorOptions, Found, Timings};
 pub use report::{MarkerReport, PoseReport};

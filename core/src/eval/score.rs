@@ -13,6 +13,7 @@ use crate::synth::MarkerTruth;
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
+use std::path::Path;
 
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Stats {
@@ -265,19 +266,31 @@ pub fn score(
     detections: &DetectionsFile,
 ) -> Result<Report, EvalError> {
     check_detections(detections)?;
-    let by_file: HashMap<&str, &crate::detect::ImageDetections> = detections
-        .images
-        .iter()
-        .map(|i| (i.file.as_str(), i))
-        .collect();
-    if let Some(unknown) = detections
-        .images
-        .iter()
-        .find(|i| !set.images.iter().any(|s| s.file == i.file))
-    {
-        return Err(EvalError::UnknownImage {
-            file: unknown.file.clone(),
-        });
+    // `tagsmith detect SET/images/*.png --json` names images by the path it was given; an entry
+    // counts for the set image whose path (relative to the set) it ends with.
+    let mut by_name: HashMap<&str, Vec<&str>> = HashMap::new();
+    for img in &set.images {
+        let name = Path::new(&img.file)
+            .file_name()
+            .and_then(|n| n.to_str())
+            .unwrap_or(&img.file);
+        by_name.entry(name).or_default().push(img.file.as_str());
+    }
+    let resolve = |file: &str| -> Option<&str> {
+        let path = Path::new(file);
+        let name = path.file_name()?.to_str()?;
+        by_name
+            .get(name)?
+            .iter()
+            .copied()
+            .find(|s| *s == file || path.ends_with(s))
+    };
+    let mut by_file: HashMap<&str, &crate::detect::ImageDetections> = HashMap::new();
+    for i in &detections.images {
+        let file = resolve(&i.file).ok_or_else(|| EvalError::UnknownImage {
+            file: i.file.clone(),
+        })?;
+        by_file.insert(file, i);
     }
     let items: Vec<(Group, Outcome)> = set
         .images

@@ -5,7 +5,7 @@
 //! disk once, seeded, so every detector sees the same images.
 
 use super::EvalError;
-use crate::detect::{Detection, DetectionsFile, Detector, ImageDetections};
+use crate::detect::{BenchDetector, Detection, DetectionsFile, ImageDetections};
 use crate::family::Family;
 use crate::geometry::Camera;
 use crate::synth::augment::AugmentRanges;
@@ -295,10 +295,12 @@ impl BenchImage {
         self.truth
             .markers
             .iter()
-            .map(|m| Detection {
-                id: m.id,
-                corners: [m.roi[0], m.roi[1], m.roi[2], m.roi[3]],
-                pose: m.pose.as_ref().filter(|_| with_pose).map(|p| p.pose),
+            .map(|m| {
+                Detection::plain(
+                    m.id,
+                    [m.roi[0], m.roi[1], m.roi[2], m.roi[3]],
+                    m.pose.as_ref().filter(|_| with_pose).map(|p| p.pose),
+                )
             })
             .collect()
     }
@@ -323,11 +325,11 @@ impl BenchmarkSet {
 }
 
 /// Runs an in-process detector over the images of the set that `include` accepts, timing each
-/// image's [`Detector::detect`] (the image is read before the clock starts).
+/// image's [`BenchDetector::detect`] (the image is read before the clock starts).
 pub fn run_detector(
     dir: &Path,
     set: &BenchmarkSet,
-    detector: &mut dyn Detector,
+    detector: &mut dyn BenchDetector,
     include: &dyn Fn(&BenchImage) -> bool,
 ) -> Result<DetectionsFile, crate::image::ImageError> {
     let mut images = Vec::with_capacity(set.images.len());

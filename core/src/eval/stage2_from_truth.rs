@@ -1,9 +1,9 @@
 //! Stage 2 measured on its own: each true ROI of an image moved by stage-1-like noise, then read
-//! by the stage-2 pipeline — a [`Detector`] the harness's runner times like any other.
+//! by the stage-2 pipeline — a [`BenchDetector`] the harness's runner times like any other.
 
 use crate::detect::refine::RefineReport;
 use crate::detect::stage2::{ReadOptions, Stage2};
-use crate::detect::{Detection, Detector};
+use crate::detect::{BenchDetector, Detection};
 use crate::geometry::Camera;
 use crate::image::GrayImage;
 use crate::pose::PoseJson;
@@ -50,7 +50,7 @@ impl Stage2FromTruth {
     }
 }
 
-impl Detector for Stage2FromTruth {
+impl BenchDetector for Stage2FromTruth {
     fn name(&self) -> String {
         format!(
             "tagsmith-stage2 ({} passes, refine {:?}, ROI noise ±{} side)",
@@ -88,11 +88,7 @@ impl Detector for Stage2FromTruth {
             .extend(found.iter().filter_map(|d| d.refinement.clone()));
         found
             .into_iter()
-            .map(|d| Detection {
-                id: d.id,
-                corners: d.corners,
-                pose: d.pose.map(|p| PoseJson::from(&p.pose)),
-            })
+            .map(|d| Detection::plain(d.id, d.corners, d.pose.map(|p| PoseJson::from(&p.pose))))
             .collect()
     }
 }

@@ -258,6 +258,47 @@ pub fn triangle() -> Vec<Primitive> {
     )]
 }
 
+/// A random square design for training stage 1 on markers no built-in family draws: an n × n
+/// grid (n in 4..=9) inside a one-cell frame, bit 0 drawn as a black cell or one of the glyphs
+/// above, bit 1 as white or another glyph, 64 random codes (no minimum distance: stage 1 only
+/// has to find the marker). `pick(k)` is a random number below k.
+pub fn random_square(index: usize, pick: &mut dyn FnMut(usize) -> usize) -> FamilySpec {
+    let n = 4 + pick(6);
+    let glyph = |k: usize| match k {
+        0 => vec![full_cell(BLACK)],
+        1 => cross(),
+        2 => ring(),
+        _ => triangle(),
+    };
+    let zero = pick(4);
+    // White (no primitive) most of the time; otherwise a glyph other than bit 0's.
+    let one = if pick(3) == 0 {
+        Some((zero + 1 + pick(3)) % 4)
+    } else {
+        None
+    };
+    let categories = vec![
+        category("frame", Role::Fixed, vec![full_cell(BLACK)]),
+        category("zero", Role::Symbol(0), glyph(zero)),
+        category("one", Role::Symbol(1), one.map(glyph).unwrap_or_default()),
+    ];
+    let bits = n * n;
+    let codes: Vec<Vec<u8>> = (0..64)
+        .map(|_| (0..bits).map(|_| pick(2) as u8).collect())
+        .collect();
+    grid_spec(
+        &format!("random-square-{index}"),
+        "Random square design",
+        "A random design for training stage 1.",
+        "Generated at random by Tagsmith.",
+        framed_cells(n + 2, 'b'),
+        legend(&[("b", "frame")]),
+        categories,
+        square_roi(0.0, (n + 2) as f64),
+        Codebook::from_codes(2, bits, codes, None, None).to_spec(None, ""),
+    )
+}
+
 /// Generates a codebook for a spec's layout and stores it in the spec.
 pub fn fill_codebook(
     spec: &mut FamilySpec,

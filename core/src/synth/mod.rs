@@ -32,6 +32,8 @@ pub enum SynthError {
     Render(#[from] RenderError),
     #[error("the placement of marker {id} is degenerate")]
     DegeneratePlacement { id: usize },
+    #[error("a scene needs at least one family")]
+    NoFamily,
 }
 
 /// A float image, 0 = black, 1 = white; pixel centres at integer coordinates.
@@ -96,11 +98,18 @@ pub struct SynthConfig {
     pub side_m: [f64; 2],
     pub distance_m: [f64; 2],
     pub view_angle_deg: [f64; 2],
+    /// Quad mode: a marker's side as a fraction of the image's shorter side.
+    #[serde(default = "default_quad_side")]
+    pub quad_side: [f64; 2],
     pub augment: AugmentRanges,
     /// Seeds the sensor noise separately: the same image seed with another noise seed renders the
     /// same scene with fresh noise (jitter sets).
     #[serde(default)]
     pub noise_seed: Option<u64>,
+}
+
+fn default_quad_side() -> [f64; 2] {
+    [0.15, 0.55]
 }
 
 impl SynthConfig {
@@ -121,6 +130,7 @@ impl SynthConfig {
             side_m: [0.03, 0.1],
             distance_m: [0.1, 1.0],
             view_angle_deg: [0.0, 75.0],
+            quad_side: default_quad_side(),
             augment: AugmentRanges::default(),
             noise_seed: None,
         }
@@ -151,6 +161,9 @@ pub struct PoseTruth {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct MarkerTruth {
     pub id: usize,
+    /// The marker's family in a scene of several ([`synthesize_mixed`]); otherwise the truth's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub family: Option<String>,
     /// Axis-aligned box of the marker's drawn area (quiet zone excluded): x0, y0, x1, y1.
     pub bbox: [f64; 4],
     /// The family's ROI points in the image, in order.
@@ -206,6 +219,17 @@ struct Placement {
 }
 
 pub fn synthesize(family: &Family, config: &SynthConfig, seed: u64) -> Result<Sample, SynthError> {
+    synthesize_mixed(&[family], config, seed)
+}
+
+/// A scene whose markers come from several families: marker `i` is of `families[i % len]`.
+/// Each marker's truth names its family when there is more than one.
+pub fn synthesize_mixed(
+    families: &[&Family],
+    config: &SynthConfig,
+    seed: u64,
+) -> Result<Sample, SynthError> {
+    let family = *families.first().ok_or(SynthError::NoFamily)?;
     if config.width < 16 || config.height < 16 || config.width > 8192 || config.height > 8192 {
         return Err(SynthError::ImageSize {
             width: config.width,
@@ -221,8 +245,9 @@ pub fn synthesize(family: &Family, config: &SynthConfig, seed: u64) -> Result<Sa
         Mode::Patch => 1,
         _ => rng.random_range(config.markers[0]..=config.markers[1].max(config.markers[0])),
     };
-    let mut placed: Vec<(usize, Placement, [f64; 4])> = Vec::new();
-    for _ in 0..count {
+    let mut placed: Vec<(usize, Placement, [f64; 4], &Family)> = Vec::new();
+    for index in 0..count {
+        let family = families[index as usize % families.len()];
         for attempt in 0..30 {
             let placement = match config.mode {
                 Mode::Quad => place_quad(family, &mut rng, config),
@@ -237,19 +262,19 @@ pub fn synthesize(family: &Family, config: &SynthConfig, seed: u64) -> Result<Sa
                 && b[3] < config.height as f64;
             let overlaps = placed
                 .iter()
-                .any(|(_, _, o)| b[0] < o[2] && o[0] < b[2] && b[1] < o[3] && o[1] < b[3]);
+                .any(|(_, _, o, _)| b[0] < o[2] && o[0] < b[2] && b[1] < o[3] && o[1] < b[3]);
             // Markers stay whole inside the image; a camera placement that never fits (a marker
             // larger than the view) is kept partly outside on the last try rather than dropped.
             let last_try = attempt == 29 && config.mode == Mode::Camera;
             if (inside || last_try) && !overlaps {
                 let id = rng.random_range(0..family.codebook().len());
-                placed.push((id, placement, b));
+                placed.push((id, placement, b, family));
                 break;
             }
         }
     }
     let mut applied = Applied::default();
-    for (id, placement, region) in &placed {
+    for (id, placement, region, family) in &placed {
         let black = draw(&mut rng, aug.marker_black) / 255.0;
         let white = draw(&mut rng, aug.marker_white) / 255.0;
         let balance = [
@@ -318,7 +343,13 @@ pub fn synthesize(family: &Family, config: &SynthConfig, seed: u64) -> Result<Sa
     let to_pixel = |p: [f64; 2]| distort_point(&lens, p);
     let markers = placed
         .iter()
-        .map(|(id, placement, _)| marker_truth(family, *id, placement, &to_pixel, config))
+        .map(|(id, placement, _, f)| {
+            let mut truth = marker_truth(f, *id, placement, &to_pixel, config);
+            if families.len() > 1 {
+                truth.family = Some(f.name().to_string());
+            }
+            truth
+        })
         .collect();
     Ok(Sample {
         image: canvas.to_gray(),
@@ -345,7 +376,12 @@ fn place_quad(
     c: &SynthConfig,
 ) -> Result<Placement, GeometryError> {
     let (w, h) = (c.width as f64, c.height as f64);
-    let side = rng.random_range(0.15..0.55) * w.min(h);
+    let [lo, hi] = c.quad_side;
+    let side = if hi > lo {
+        rng.random_range(lo..hi)
+    } else {
+        lo
+    } * w.min(h);
     let (cx, cy) = (rng.random_range(0.0..w), rng.random_range(0.0..h));
     let angle = rng.random_range(0.0..std::f64::consts::TAU);
     let (s, co) = angle.sin_cos();
@@ -623,6 +659,7 @@ fn marker_truth(
     let mask: Vec<[f64; 2]> = outline_units(family).into_iter().map(project).collect();
     MarkerTruth {
         id,
+        family: None,
         bbox: bounding_box(&mask),
         roi: family.roi_points().iter().map(|&p| project(p)).collect(),
         keypoints,

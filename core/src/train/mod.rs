@@ -14,6 +14,7 @@
 mod checkpoint;
 pub mod loader;
 pub mod stage;
+pub mod stage1;
 pub mod stage2;
 
 use crate::family::Family;
@@ -23,6 +24,7 @@ use burn::tensor::Device;
 use loader::Loader;
 use serde::{Deserialize, Serialize};
 use stage::TrainStage;
+use stage1::RoiStage;
 use stage2::KeypointStage;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -191,6 +193,18 @@ pub fn train_keypoints(
     train(stage, config, out, resume, stop, on_event)
 }
 
+/// Trains stage 1 (the ROI network for every square family): [`train`] with [`RoiStage`].
+pub fn train_roi(
+    config: &TrainConfig,
+    out: &Path,
+    resume: bool,
+    stop: &AtomicBool,
+    on_event: &mut dyn FnMut(StageEvent<RoiStage>),
+) -> Result<StageReport<RoiStage>, TrainError> {
+    let stage = Arc::new(RoiStage::new(config.width).map_err(TrainError::Data)?);
+    train(stage, config, out, resume, stop, on_event)
+}
+
 /// Trains `stage` into `out`; with `resume`, continues from the folder's checkpoint. `stop` ends
 /// the run early at the next step (a checkpoint is written first).
 pub fn train<S: TrainStage>(
@@ -205,7 +219,7 @@ pub fn train<S: TrainStage>(
     dir.check_writable()?;
     let mut run = Run::start(stage.clone(), config, &dir, resume)?;
     on_event(Event::Started {
-        family: stage.family().name().into(),
+        family: stage.subject(),
         first_step: run.step,
         steps: config.steps,
         params: run.params,
@@ -379,11 +393,12 @@ impl<S: TrainStage> Run<S> {
             .map_err(TrainError::Diverged)?;
         crate::io::write_atomic(&dir.model(), &bytes)
             .map_err(|e| TrainError::Output(format!("{}: {e}", dir.model().display())))?;
-        let done = (self.step - self.first_step).max(1);
-        let family = self.stage.family();
+        // A resumed run that was already complete made no step here: no rate to report.
+        let done = self.step - self.first_step;
+        let per = |x: f64| if done == 0 { 0.0 } else { x };
         let report = Report {
-            family: family.name().into(),
-            family_hash: crate::detect::stage2::model_file::family_hash(family),
+            family: self.stage.subject(),
+            family_hash: self.stage.subject_hash(),
             config: self.config.clone(),
             info: self.stage.info(),
             params: self.params,
@@ -391,8 +406,8 @@ impl<S: TrainStage> Run<S> {
             steps: self.step,
             wall_s: wall,
             total_wall_s: self.earlier_wall + wall,
-            mean_step_ms: wall * 1000.0 / done as f64,
-            samples_per_s: (done as usize * self.config.batch) as f64 / wall.max(1e-9),
+            mean_step_ms: per(wall * 1000.0 / done.max(1) as f64),
+            samples_per_s: per((done as usize * self.config.batch) as f64 / wall.max(1e-9)),
             data_wait_fraction: loader.waited.as_secs_f64() / wall.max(1e-9),
             resumed_from: self.resumed_from,
             final_loss: self.last,

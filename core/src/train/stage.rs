@@ -3,7 +3,6 @@
 //! optimiser, learning-rate schedule, data workers, checkpoints, resume, events, report — so a
 //! new stage implements this trait and gets all of it.
 
-use crate::family::Family;
 use burn::module::Module;
 use burn::tensor::{Device, Tensor};
 use serde::de::DeserializeOwned;
@@ -21,7 +20,13 @@ pub trait TrainStage: Send + Sync + 'static {
     /// What the report says about the network (its configuration, its input size).
     type Info: Clone + Debug + PartialEq + Serialize + DeserializeOwned;
 
-    fn family(&self) -> &Family;
+    /// What the run trains for, as reports name it: a family's name, or what a family-free
+    /// stage finds.
+    fn subject(&self) -> String;
+    /// A hash of what the network's outputs mean (a family's [`family_hash`]), for the report.
+    ///
+    /// [`family_hash`]: crate::detect::stage2::model_file::family_hash
+    fn subject_hash(&self) -> String;
     fn info(&self) -> Self::Info;
     /// Multiply-accumulates per input.
     fn macs(&self) -> u64;

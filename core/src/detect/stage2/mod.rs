@@ -39,6 +39,11 @@ const SHIPPED: &[(&str, &[u8])] = &[
     ),
 ];
 
+/// The built-in families with shipped stage-2 weights.
+pub fn shipped_families() -> impl Iterator<Item = &'static str> {
+    SHIPPED.iter().map(|(name, _)| *name)
+}
+
 /// The shipped stage-2 model file of a built-in family, if it has one.
 pub fn shipped_model(family: &str) -> Option<&'static [u8]> {
     SHIPPED

@@ -33,8 +33,8 @@ pub enum ModelError {
         path: String,
         source: std::io::Error,
     },
-    #[error("{path}: not a Tagsmith stage-2 model file (it does not start with the model header)")]
-    NotAModel { path: String },
+    #[error("{path}: not a Tagsmith {kind} model file (it does not start with the model header)")]
+    NotAModel { path: String, kind: &'static str },
     #[error("{path}: the model file is corrupt: {reason}")]
     Corrupt { path: String, reason: String },
     #[error(
@@ -57,7 +57,7 @@ pub enum ModelError {
 
 /// Whether every weight of the network is a finite number: weights that are not make every
 /// detection garbage, so they are neither saved nor loaded.
-pub fn weights_are_finite(net: &Stage2Net) -> bool {
+pub fn weights_are_finite<M: Module>(net: &M) -> bool {
     struct Check(bool);
     impl ModuleVisitor for Check {
         fn visit_float<const D: usize>(&mut self, param: &Param<Tensor<D>>) {
@@ -113,19 +113,32 @@ pub fn to_bytes(
         steps,
         weights_fnv: format!("{:016x}", fnv1a(&weights)),
     };
-    let json = serde_json::to_vec(&header).map_err(|e| e.to_string())?;
-    let mut out = MAGIC.to_vec();
-    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
-    out.extend_from_slice(&json);
-    out.extend_from_slice(&weights);
-    Ok(out)
+    Ok(pack(MAGIC, &header, &weights))
 }
 
-/// Reads the header without the weights.
-pub fn read_header(bytes: &[u8], path: &str) -> Result<(ModelHeader, usize), ModelError> {
+/// A model file's bytes: `magic`, the header's JSON length (u32 LE) and JSON, the weights.
+pub(crate) fn pack<H: Serialize>(magic: &[u8], header: &H, weights: &[u8]) -> Vec<u8> {
+    let json = serde_json::to_vec(header).expect("model headers serialise");
+    let mut out = magic.to_vec();
+    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
+    out.extend_from_slice(&json);
+    out.extend_from_slice(weights);
+    out
+}
+
+/// The header of a file written by [`pack`] and where its weights start.
+pub(crate) fn unpack<H: serde::de::DeserializeOwned>(
+    bytes: &[u8],
+    magic: &[u8],
+    kind: &'static str,
+    path: &str,
+) -> Result<(H, usize), ModelError> {
     let rest = bytes
-        .strip_prefix(MAGIC)
-        .ok_or_else(|| ModelError::NotAModel { path: path.into() })?;
+        .strip_prefix(magic)
+        .ok_or_else(|| ModelError::NotAModel {
+            path: path.into(),
+            kind,
+        })?;
     let corrupt = |reason: String| ModelError::Corrupt {
         path: path.into(),
         reason,
@@ -137,12 +150,37 @@ pub fn read_header(bytes: &[u8], path: &str) -> Result<(ModelHeader, usize), Mod
     let json = rest
         .get(4..4 + len)
         .ok_or_else(|| corrupt("truncated header".into()))?;
-    let header: ModelHeader =
-        serde_json::from_slice(json).map_err(|e| corrupt(format!("header: {e}")))?;
-    if header.format != 1 {
-        return Err(corrupt(format!("unknown format {}", header.format)));
+    let header = serde_json::from_slice(json).map_err(|e| corrupt(format!("header: {e}")))?;
+    Ok((header, magic.len() + 4 + len))
+}
+
+/// The weights after `start`, checked against the header's checksum.
+pub(crate) fn checked_weights<'a>(
+    bytes: &'a [u8],
+    start: usize,
+    fnv: &str,
+    path: &str,
+) -> Result<&'a [u8], ModelError> {
+    let weights = &bytes[start..];
+    if format!("{:016x}", fnv1a(weights)) != fnv {
+        return Err(ModelError::Corrupt {
+            path: path.into(),
+            reason: "the weights' checksum does not match".into(),
+        });
     }
-    Ok((header, MAGIC.len() + 4 + len))
+    Ok(weights)
+}
+
+/// Reads the header without the weights.
+pub fn read_header(bytes: &[u8], path: &str) -> Result<(ModelHeader, usize), ModelError> {
+    let (header, start): (ModelHeader, usize) = unpack(bytes, MAGIC, "stage-2", path)?;
+    if header.format != 1 {
+        return Err(ModelError::Corrupt {
+            path: path.into(),
+            reason: format!("unknown format {}", header.format),
+        });
+    }
+    Ok((header, start))
 }
 
 /// Loads a model for `family` onto `device`, checking that it was trained for that family and
@@ -167,14 +205,11 @@ pub fn from_bytes(
             family: family.name().into(),
         });
     }
-    let weights = &bytes[start..];
+    let weights = checked_weights(bytes, start, &header.weights_fnv, path)?;
     let corrupt = |reason: String| ModelError::Corrupt {
         path: path.into(),
         reason,
     };
-    if format!("{:016x}", fnv1a(weights)) != header.weights_fnv {
-        return Err(corrupt("the weights' checksum does not match".into()));
-    }
     let classes = family.categories().len() + 1;
     if header.net.classes != classes {
         return Err(corrupt(format!(

@@ -94,7 +94,13 @@ pub struct SeparableBlock {
 }
 
 impl SeparableBlock {
-    fn new(cin: usize, cout: usize, stride: usize, dilation: usize, device: &Device) -> Self {
+    pub(crate) fn new(
+        cin: usize,
+        cout: usize,
+        stride: usize,
+        dilation: usize,
+        device: &Device,
+    ) -> Self {
         Self {
             depthwise: Conv2dConfig::new([cin, cin], [3, 3])
                 .with_stride([stride, stride])
@@ -113,7 +119,7 @@ impl SeparableBlock {
         }
     }
 
-    fn forward(&self, x: Tensor<4>) -> Tensor<4> {
+    pub(crate) fn forward(&self, x: Tensor<4>) -> Tensor<4> {
         let x = relu(self.bn1.forward(self.depthwise.forward(x)));
         relu(self.bn2.forward(self.pointwise.forward(x)))
     }

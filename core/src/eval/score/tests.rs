@@ -1,6 +1,6 @@
 use super::super::set::{generate, load, run_detector, BenchImage, SetParams};
 use super::*;
-use crate::detect::{Detector, ImageDetections};
+use crate::detect::{BenchDetector, ImageDetections};
 use crate::image::GrayImage;
 use crate::synth::Truth;
 
@@ -193,7 +193,7 @@ fn a_wrong_id_is_a_false_positive() {
 /// An in-process detector that reads the truth back from the manifest by image content.
 struct Lookup(Vec<(GrayImage, Vec<Detection>)>);
 
-impl Detector for Lookup {
+impl BenchDetector for Lookup {
     fn name(&self) -> String {
         "lookup".into()
     }

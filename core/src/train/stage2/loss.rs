@@ -100,7 +100,7 @@ pub struct LossTerms {
     pub template: f32,
 }
 
-fn smooth_l1<const D: usize>(d: Tensor<D>) -> Tensor<D> {
+pub(crate) fn smooth_l1<const D: usize>(d: Tensor<D>) -> Tensor<D> {
     // 0.5·d² below 1, d − 0.5 above, written without a branch: with m = min(|d|, 1),
     // 0.5·m² + (|d| − m).
     let a = d.abs();

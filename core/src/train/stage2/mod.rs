@@ -55,8 +55,12 @@ impl TrainStage for KeypointStage {
     type Terms = LossTerms;
     type Info = KeypointInfo;
 
-    fn family(&self) -> &Family {
-        &self.family
+    fn subject(&self) -> String {
+        self.family.name().into()
+    }
+
+    fn subject_hash(&self) -> String {
+        model_file::family_hash(&self.family)
     }
 
     fn info(&self) -> KeypointInfo {

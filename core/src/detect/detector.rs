@@ -1,0 +1,225 @@
+//! The full detector (docs/ARCHITECTURE.md §9.12): stage 1 proposes ROIs in the whole image,
+//! stage 2 of every requested family reads each ROI, and a ROI that no family decodes is
+//! dropped — a false ROI costs stage-2 passes, never a wrong ID. The CLI, the harness and the
+//! studio all detect through [`Detector::detect`].
+
+use super::stage1::group::Proposal;
+use super::stage1::{ProposeOptions, Stage1};
+use super::stage2::model_file::ModelError;
+use super::stage2::{shipped_model, ReadOptions, Stage2, Stage2Result};
+use super::{BenchDetector, Detection, Scores};
+use crate::family::Family;
+use crate::geometry::{Camera, PoseJson};
+use crate::image::GrayImage;
+use crate::io::Stopwatch;
+use serde::Serialize;
+
+/// Stage-1 weights shipped in `assets/models/`: one model for every square family.
+pub const SHIPPED_STAGE1: &[u8] = include_bytes!("../../../assets/models/square.stage1.bin");
+
+/// One family's stage 2 and the marker size its poses assume.
+pub struct FamilyReader {
+    pub family: Family,
+    pub stage2: Stage2,
+    /// ROI side in metres.
+    pub side_m: f64,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct DetectorOptions {
+    pub propose: ProposeOptions,
+    pub read: ReadOptions,
+}
+
+/// Where an image's time went.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct Timings {
+    pub stage1_ms: f64,
+    /// Stage 2 on every proposal for every family, refinement and pose included.
+    pub stage2_ms: f64,
+    pub proposals: usize,
+    /// Stage-2 reads started (proposals × families).
+    pub reads: usize,
+}
+
+/// A marker found in an image.
+#[derive(Debug, Clone)]
+pub struct Found {
+    pub family: String,
+    pub marker: Stage2Result,
+    /// Stage 1's ROI for it.
+    pub proposal: Proposal,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum DetectorError {
+    #[error(transparent)]
+    Model(#[from] ModelError),
+    #[error(
+        "family {0:?} has no shipped stage-2 weights; train them with `tagsmith train {0} --stage \
+         keypoints` and pass the model file"
+    )]
+    NoWeights(String),
+    #[error("no family to detect")]
+    NoFamilies,
+}
+
+pub struct Detector {
+    pub stage1: Stage1,
+    pub readers: Vec<FamilyReader>,
+    /// Intrinsics for the poses; without them each image's are guessed from its size and a 70°
+    /// diagonal field of view.
+    pub camera: Option<Camera>,
+    pub options: DetectorOptions,
+}
+
+impl FamilyReader {
+    pub fn new(family: Family, stage2: Stage2) -> Self {
+        let side_m = family.spec().print.marker_side_mm / 1000.0;
+        Self {
+            family,
+            stage2,
+            side_m,
+        }
+    }
+
+    /// The family with its shipped stage-2 weights.
+    pub fn shipped(family: Family) -> Result<Self, DetectorError> {
+        let bytes =
+            shipped_model(family.name()).ok_or(DetectorError::NoWeights(family.name().into()))?;
+        let name = format!("shipped model of {}", family.name());
+        let stage2 = Stage2::from_bytes(bytes, &name, &family)?;
+        Ok(Self::new(family, stage2))
+    }
+}
+
+impl Detector {
+    pub fn new(stage1: Stage1, readers: Vec<FamilyReader>) -> Result<Self, DetectorError> {
+        if readers.is_empty() {
+            return Err(DetectorError::NoFamilies);
+        }
+        Ok(Self {
+            stage1,
+            readers,
+            camera: None,
+            options: DetectorOptions::default(),
+        })
+    }
+
+    /// The shipped stage 1 with the shipped stage 2 of each family.
+    pub fn shipped(families: Vec<Family>) -> Result<Self, DetectorError> {
+        let stage1 = Stage1::from_bytes(SHIPPED_STAGE1, "shipped stage-1 model")?;
+        let readers = families
+            .into_iter()
+            .map(FamilyReader::shipped)
+            .collect::<Result<Vec<_>, _>>()?;
+        Self::new(stage1, readers)
+    }
+
+    /// Every marker in `image`, best ROI first, and the time each stage took.
+    pub fn detect(&self, image: &GrayImage) -> (Vec<Found>, Timings) {
+        let clock = Stopwatch::start();
+        let proposals = self.stage1.propose(image, &self.options.propose);
+        let mut timings = Timings {
+            stage1_ms: clock.ms(),
+            proposals: proposals.len(),
+            ..Timings::default()
+        };
+        let clock = Stopwatch::start();
+        let guessed;
+        let camera = match &self.camera {
+            Some(c) => Some(c),
+            None => {
+                guessed = Camera::from_diagonal_fov(image.width, image.height, 70.0).ok();
+                guessed.as_ref()
+            }
+        };
+        let mut found: Vec<Found> = Vec::new();
+        for proposal in proposals {
+            let mut best: Option<Found> = None;
+            for reader in &self.readers {
+                timings.reads += 1;
+                let read = reader.stage2.detect(
+                    image,
+                    &proposal.corners,
+                    &self.options.read,
+                    camera.map(|c| (c, reader.side_m)),
+                );
+                let Some(marker) = read else { continue };
+                // Two families reading one ROI: the one whose code needed fewer corrections.
+                if best
+                    .as_ref()
+                    .is_none_or(|b| marker.corrected_errors < b.marker.corrected_errors)
+                {
+                    best = Some(Found {
+                        family: reader.family.name().into(),
+                        marker,
+                        proposal,
+                    });
+                }
+            }
+            if let Some(f) = best {
+                let twice = found.iter().any(|g| {
+                    g.family == f.family
+                        && g.marker.id == f.marker.id
+                        && (inside(&g.marker.corners, centre(&f.marker.corners))
+                            || inside(&f.marker.corners, centre(&g.marker.corners)))
+                });
+                if !twice {
+                    found.push(f);
+                }
+            }
+        }
+        timings.stage2_ms = clock.ms();
+        (found, timings)
+    }
+}
+
+fn centre(q: &[[f64; 2]; 4]) -> [f64; 2] {
+    super::stage1::group::quad_centre(q)
+}
+
+fn inside(q: &[[f64; 2]; 4], p: [f64; 2]) -> bool {
+    super::stage1::targets::inside(q, p)
+}
+
+impl Found {
+    /// The marker in the detections file's format.
+    pub fn detection(&self) -> Detection {
+        let m = &self.marker;
+        let confidence = if m.keypoints.is_empty() {
+            0.0
+        } else {
+            m.keypoints.iter().map(|k| k.confidence).sum::<f64>() / m.keypoints.len() as f64
+        };
+        Detection {
+            id: m.id,
+            corners: m.corners,
+            pose: m.pose.as_ref().map(|p| PoseJson::from(&p.pose)),
+            family: Some(self.family.clone()),
+            keypoints: m.keypoints.clone(),
+            scores: Some(Scores {
+                roi: self.proposal.score,
+                keypoints: confidence,
+                corrected_errors: m.corrected_errors,
+                reprojection_rms_px: m.pose.as_ref().map(|p| p.rms_px),
+            }),
+        }
+    }
+}
+
+/// The harness runs the full detector like any other.
+impl BenchDetector for Detector {
+    fn name(&self) -> String {
+        let families: Vec<&str> = self.readers.iter().map(|r| r.family.name()).collect();
+        format!("Tagsmith ({})", families.join(", "))
+    }
+
+    fn detect(&mut self, image: &GrayImage) -> Vec<Detection> {
+        Detector::detect(self, image)
+            .0
+            .iter()
+            .map(Found::detection)
+            .collect()
+    }
+}

@@ -1,0 +1,415 @@
+//! From stage 1's maps to marker ROIs (docs/ARCHITECTURE.md §9.11), plain Rust.
+//!
+//! Corners are the heat map's local maxima, placed by their offsets. Each carries the direction
+//! to its marker's centre, and the centre is where the diagonals cross, so two corners that
+//! point at each other along the line joining them are the two ends of a diagonal. Two
+//! diagonals whose segments cross make a quad; the marker mask has to cover its inside. Quads are
+//! taken best first, each corner used once — clustering by geometry rather than NMS over boxes,
+//! in the spirit of the paper's corner assignment.
+
+use super::targets::inside;
+use super::STRIDE;
+
+/// A corner found on the heat map, in image pixels.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Corner {
+    pub at: [f64; 2],
+    /// Unit direction to the marker centre.
+    pub direction: [f64; 2],
+    pub score: f64,
+}
+
+/// A marker ROI: four corners clockwise in the image (x right, y down), the same turning sense
+/// as the families' ROI order; which corner comes first is left to stage 2, which reads markers
+/// turned by any quarter.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Proposal {
+    pub corners: [[f64; 2]; 4],
+    /// Mean corner confidence times the mask cover of the inside.
+    pub score: f64,
+}
+
+/// Stage 1's maps for one image, after the sigmoid on heat and mask.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Maps {
+    pub columns: usize,
+    pub rows: usize,
+    pub heat: Vec<f32>,
+    pub offset: Vec<[f32; 2]>,
+    pub direction: Vec<[f32; 2]>,
+    pub mask: Vec<f32>,
+}
+
+/// Thresholds of the grouping.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GroupOptions {
+    /// Corner confidence.
+    pub corner: f32,
+    /// Cosine between a corner's direction and the line to the other end of its diagonal.
+    pub aligned: f64,
+    /// Mean mask over the quad's inside.
+    pub mask: f64,
+    /// Shortest diagonal, in image pixels.
+    pub min_diagonal: f64,
+}
+
+impl Default for GroupOptions {
+    fn default() -> Self {
+        Self {
+            corner: 0.3,
+            aligned: 0.8,
+            mask: 0.5,
+            min_diagonal: 8.0,
+        }
+    }
+}
+
+/// More corners than this in one image is clutter; the best are kept.
+const MAX_CORNERS: usize = 400;
+
+impl Maps {
+    fn at(&self, cx: usize, cy: usize) -> f32 {
+        self.heat[cy * self.columns + cx]
+    }
+
+    /// The mask at an image point (`scale` image pixels per network input pixel), bilinear.
+    pub fn mask_at(&self, p: [f64; 2], scale: f64) -> f64 {
+        let [x, y] = [level_from_image(p[0], scale), level_from_image(p[1], scale)];
+        let s = STRIDE as f64;
+        let (gx, gy) = (x / s - 0.5, y / s - 0.5);
+        let (x0, y0) = (gx.floor(), gy.floor());
+        let (fx, fy) = (gx - x0, gy - y0);
+        let get = |x: f64, y: f64| {
+            let x = x.clamp(0.0, self.columns as f64 - 1.0) as usize;
+            let y = y.clamp(0.0, self.rows as f64 - 1.0) as usize;
+            self.mask[y * self.columns + x] as f64
+        };
+        get(x0, y0) * (1.0 - fx) * (1.0 - fy)
+            + get(x0 + 1.0, y0) * fx * (1.0 - fy)
+            + get(x0, y0 + 1.0) * (1.0 - fx) * fy
+            + get(x0 + 1.0, y0 + 1.0) * fx * fy
+    }
+
+    /// Local maxima of the heat map above `threshold`, in image pixels (`scale` image pixels per
+    /// network input pixel).
+    pub fn corners(&self, threshold: f32, scale: f64) -> Vec<Corner> {
+        let mut out = Vec::new();
+        for cy in 0..self.rows {
+            for cx in 0..self.columns {
+                let v = self.at(cx, cy);
+                if v < threshold {
+                    continue;
+                }
+                let mut peak = true;
+                for ny in cy.saturating_sub(1)..=(cy + 1).min(self.rows - 1) {
+                    for nx in cx.saturating_sub(1)..=(cx + 1).min(self.columns - 1) {
+                        let w = self.at(nx, ny);
+                        // Ties go to the first in raster order.
+                        if w > v || (w == v && (ny, nx) < (cy, cx)) {
+                            peak = false;
+                        }
+                    }
+                }
+                if !peak {
+                    continue;
+                }
+                let i = cy * self.columns + cx;
+                let s = STRIDE as f64;
+                let [ox, oy] = self.offset[i];
+                let [dx, dy] = self.direction[i];
+                let len = (dx as f64).hypot(dy as f64).max(1e-9);
+                out.push(Corner {
+                    at: [
+                        image_from_level((cx as f64 + 0.5 + ox as f64) * s, scale),
+                        image_from_level((cy as f64 + 0.5 + oy as f64) * s, scale),
+                    ],
+                    direction: [dx as f64 / len, dy as f64 / len],
+                    score: v as f64,
+                });
+            }
+        }
+        out.sort_by(|a, b| b.score.total_cmp(&a.score));
+        out.truncate(MAX_CORNERS);
+        out
+    }
+}
+
+/// A pyramid level's coordinate in the image. Pixel centres sit at whole coordinates and a level
+/// pixel averages `scale` × `scale` image pixels, so its centre lies (scale − 1)/2 further on.
+pub fn image_from_level(x: f64, scale: f64) -> f64 {
+    x * scale + (scale - 1.0) / 2.0
+}
+
+fn level_from_image(x: f64, scale: f64) -> f64 {
+    (x - (scale - 1.0) / 2.0) / scale
+}
+
+fn dot(a: [f64; 2], b: [f64; 2]) -> f64 {
+    a[0] * b[0] + a[1] * b[1]
+}
+
+fn sub(a: [f64; 2], b: [f64; 2]) -> [f64; 2] {
+    [a[0] - b[0], a[1] - b[1]]
+}
+
+fn cross(a: [f64; 2], b: [f64; 2]) -> f64 {
+    a[0] * b[1] - a[1] * b[0]
+}
+
+/// Twice the signed area; positive for clockwise order in image coordinates (y down).
+fn signed_area(q: &[[f64; 2]; 4]) -> f64 {
+    (0..4).map(|i| cross(q[i], q[(i + 1) % 4])).sum()
+}
+
+/// Where the segments a→b and c→d cross, as fractions along each.
+fn crossing(a: [f64; 2], b: [f64; 2], c: [f64; 2], d: [f64; 2]) -> Option<(f64, f64)> {
+    let (r, s) = (sub(b, a), sub(d, c));
+    let den = cross(r, s);
+    if den.abs() < 1e-9 {
+        return None;
+    }
+    let ac = sub(c, a);
+    Some((cross(ac, s) / den, cross(ac, r) / den))
+}
+
+/// The mean of `mask` at nine points spread over the quad's inside.
+fn mask_cover(q: &[[f64; 2]; 4], mask: &dyn Fn([f64; 2]) -> f64) -> f64 {
+    let mut sum = 0.0;
+    for v in [0.25, 0.5, 0.75] {
+        for u in [0.25, 0.5, 0.75] {
+            let top = [
+                q[0][0] + u * (q[1][0] - q[0][0]),
+                q[0][1] + u * (q[1][1] - q[0][1]),
+            ];
+            let bottom = [
+                q[3][0] + u * (q[2][0] - q[3][0]),
+                q[3][1] + u * (q[2][1] - q[3][1]),
+            ];
+            sum += mask([
+                top[0] + v * (bottom[0] - top[0]),
+                top[1] + v * (bottom[1] - top[1]),
+            ]);
+        }
+    }
+    sum / 9.0
+}
+
+/// The marker ROIs that `corners` make, best first, each corner in at most one.
+pub fn group(
+    corners: &[Corner],
+    mask: &dyn Fn([f64; 2]) -> f64,
+    options: &GroupOptions,
+) -> Vec<Proposal> {
+    let mut diagonals = Vec::new();
+    for (i, a) in corners.iter().enumerate() {
+        for (j, b) in corners.iter().enumerate().skip(i + 1) {
+            let ab = sub(b.at, a.at);
+            let len = ab[0].hypot(ab[1]);
+            if len < options.min_diagonal {
+                continue;
+            }
+            let u = [ab[0] / len, ab[1] / len];
+            let (ca, cb) = (dot(a.direction, u), -dot(b.direction, u));
+            if ca > options.aligned && cb > options.aligned {
+                diagonals.push((i, j));
+            }
+        }
+    }
+    let mut candidates = Vec::new();
+    for (k, &(a, b)) in diagonals.iter().enumerate() {
+        for &(c, d) in &diagonals[k + 1..] {
+            if a == c || a == d || b == c || b == d {
+                continue;
+            }
+            let (pa, pb, pc, pd) = (corners[a].at, corners[b].at, corners[c].at, corners[d].at);
+            let Some((t, s)) = crossing(pa, pb, pc, pd) else {
+                continue;
+            };
+            if !(0.15..=0.85).contains(&t) || !(0.15..=0.85).contains(&s) {
+                continue;
+            }
+            let mut q = [pa, pc, pb, pd];
+            if signed_area(&q) < 0.0 {
+                q = [pa, pd, pb, pc];
+            }
+            let sides: Vec<f64> = (0..4)
+                .map(|i| {
+                    let e = sub(q[(i + 1) % 4], q[i]);
+                    e[0].hypot(e[1])
+                })
+                .collect();
+            let (shortest, longest) = sides
+                .iter()
+                .fold((f64::MAX, 0.0f64), |(lo, hi), &x| (lo.min(x), hi.max(x)));
+            if shortest < 0.15 * longest {
+                continue;
+            }
+            let cover = mask_cover(&q, mask);
+            if cover < options.mask {
+                continue;
+            }
+            let confidence = [a, b, c, d].iter().map(|&i| corners[i].score).sum::<f64>() / 4.0;
+            candidates.push((
+                [a, b, c, d],
+                Proposal {
+                    corners: q,
+                    score: confidence * cover,
+                },
+            ));
+        }
+    }
+    candidates.sort_by(|x, y| y.1.score.total_cmp(&x.1.score));
+    let mut used = vec![false; corners.len()];
+    let mut taken: Vec<Proposal> = Vec::new();
+    for (ids, p) in candidates {
+        if ids.iter().any(|&i| used[i]) {
+            continue;
+        }
+        let centre = quad_centre(&p.corners);
+        if taken
+            .iter()
+            .any(|t| inside(&t.corners, centre) || inside(&p.corners, quad_centre(&t.corners)))
+        {
+            continue;
+        }
+        ids.iter().for_each(|&i| used[i] = true);
+        taken.push(p);
+    }
+    taken
+}
+
+/// The mean of the four corners.
+pub fn quad_centre(q: &[[f64; 2]; 4]) -> [f64; 2] {
+    let s = q.iter().fold([0.0, 0.0], |s, p| [s[0] + p[0], s[1] + p[1]]);
+    [s[0] / 4.0, s[1] / 4.0]
+}
+
+/// Keeps, of proposals that mark the same quad (every corner within a fifth of the shorter
+/// side of the other's), the better one. Pyramid levels find mid-sized markers twice.
+pub fn merge_duplicates(mut proposals: Vec<Proposal>) -> Vec<Proposal> {
+    proposals.sort_by(|a, b| b.score.total_cmp(&a.score));
+    let mut kept: Vec<Proposal> = Vec::new();
+    'next: for p in proposals {
+        for k in &kept {
+            let side = shortest_side(&k.corners).min(shortest_side(&p.corners));
+            // Any starting corner: the same quad may be listed from another corner.
+            let same = (0..4).any(|shift| {
+                (0..4).all(|i| {
+                    let d = sub(p.corners[(i + shift) % 4], k.corners[i]);
+                    d[0].hypot(d[1]) < 0.2 * side
+                })
+            });
+            if same {
+                continue 'next;
+            }
+        }
+        kept.push(p);
+    }
+    kept
+}
+
+fn shortest_side(q: &[[f64; 2]; 4]) -> f64 {
+    (0..4)
+        .map(|i| {
+            let e = sub(q[(i + 1) % 4], q[i]);
+            e[0].hypot(e[1])
+        })
+        .fold(f64::MAX, f64::min)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn corner(at: [f64; 2], centre: [f64; 2], score: f64) -> Corner {
+        let d = sub(centre, at);
+        let l = d[0].hypot(d[1]);
+        Corner {
+            at,
+            direction: [d[0] / l, d[1] / l],
+            score,
+        }
+    }
+
+    fn marker(corners: [[f64; 2]; 4]) -> Vec<Corner> {
+        let c = crate::detect::stage1::targets::diagonal_crossing(&corners).unwrap();
+        corners.iter().map(|&p| corner(p, c, 0.9)).collect()
+    }
+
+    #[test]
+    fn two_markers_and_clutter_group_into_two_clockwise_quads() {
+        let a = [[10.0, 10.0], [50.0, 12.0], [52.0, 48.0], [8.0, 50.0]];
+        // Listed anticlockwise: the result must still turn clockwise.
+        let b = [
+            [100.0, 100.0],
+            [100.0, 160.0],
+            [170.0, 165.0],
+            [165.0, 95.0],
+        ];
+        let mut corners = marker(a);
+        corners.extend(marker(b));
+        // Corners pointing nowhere useful.
+        corners.push(corner([80.0, 20.0], [80.0, 0.0], 0.95));
+        corners.push(corner([30.0, 120.0], [0.0, 120.0], 0.95));
+        let everywhere = |_: [f64; 2]| 1.0;
+        let quads = group(&corners, &everywhere, &GroupOptions::default());
+        assert_eq!(quads.len(), 2, "{quads:?}");
+        for q in &quads {
+            assert!(signed_area(&q.corners) > 0.0);
+            let expected = if q.corners.contains(&a[0]) { a } else { b };
+            for p in expected {
+                assert!(q.corners.contains(&p));
+            }
+        }
+    }
+
+    #[test]
+    fn a_quad_the_mask_does_not_cover_is_dropped() {
+        let corners = marker([[10.0, 10.0], [50.0, 10.0], [50.0, 50.0], [10.0, 50.0]]);
+        let nowhere = |_: [f64; 2]| 0.1;
+        assert!(group(&corners, &nowhere, &GroupOptions::default()).is_empty());
+    }
+
+    #[test]
+    fn the_same_quad_from_two_levels_is_kept_once() {
+        let q = [[10.0, 10.0], [50.0, 10.0], [50.0, 50.0], [10.0, 50.0]];
+        let shifted = [q[1], q[2], q[3], [11.0, 9.0]];
+        let other = [[60.0, 10.0], [90.0, 10.0], [90.0, 40.0], [60.0, 40.0]];
+        let kept = merge_duplicates(vec![
+            Proposal {
+                corners: q,
+                score: 0.5,
+            },
+            Proposal {
+                corners: shifted,
+                score: 0.8,
+            },
+            Proposal {
+                corners: other,
+                score: 0.4,
+            },
+        ]);
+        assert_eq!(kept.len(), 2);
+        assert_eq!(kept[0].corners, shifted);
+    }
+
+    #[test]
+    fn peaks_are_placed_by_their_offsets() {
+        let (columns, rows) = (8, 6);
+        let mut maps = Maps {
+            columns,
+            rows,
+            heat: vec![0.0; 48],
+            offset: vec![[0.0; 2]; 48],
+            direction: vec![[1.0, 0.0]; 48],
+            mask: vec![0.0; 48],
+        };
+        maps.heat[2 * 8 + 3] = 0.9;
+        maps.heat[2 * 8 + 4] = 0.5;
+        maps.offset[2 * 8 + 3] = [0.25, -0.5];
+        let found = maps.corners(0.3, 2.0);
+        assert_eq!(found.len(), 1);
+        // Level pixel centres at whole coordinates: a half-size level's x maps to 2x + 0.5.
+        assert_eq!(found[0].at, [3.75 * 8.0 + 0.5, 2.0 * 8.0 + 0.5]);
+    }
+}

@@ -1,0 +1,91 @@
+//! The trained stage-1 model file: the same container as stage 2's (magic line, JSON header with
+//! a checksum of the weights, burnpack weights). Stage 1 belongs to no family — one model finds
+//! the markers of every square family — so the header lists the families it was trained on for
+//! the record rather than to check them.
+
+use super::net::{NetConfig, Stage1Net};
+use crate::detect::stage2::model_file::{
+    checked_weights, fnv1a, pack, unpack, weights_are_finite, ModelError,
+};
+use burn::module::Module;
+use burn::store::ModuleRecord;
+use burn::tensor::{Bytes, Device};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+const MAGIC: &[u8] = b"TAGSMITH-STAGE1\n";
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Stage1Header {
+    pub format: u32,
+    pub net: NetConfig,
+    /// Optimiser steps the weights were trained for.
+    pub steps: u64,
+    /// Families whose markers were in the training scenes (besides random designs).
+    pub families: Vec<String>,
+    /// FNV-1a 64 of the weight bytes.
+    pub weights_fnv: String,
+}
+
+pub fn to_bytes(
+    net: Stage1Net,
+    config: &NetConfig,
+    families: &[String],
+    steps: u64,
+) -> Result<Vec<u8>, String> {
+    if !weights_are_finite(&net) {
+        return Err(
+            "the network's weights are not all finite numbers (training diverged); nothing was \
+             written"
+                .into(),
+        );
+    }
+    let weights = net.into_record().into_bytes().map_err(|e| e.to_string())?;
+    let header = Stage1Header {
+        format: 1,
+        net: *config,
+        steps,
+        families: families.to_vec(),
+        weights_fnv: format!("{:016x}", fnv1a(&weights)),
+    };
+    Ok(pack(MAGIC, &header, &weights))
+}
+
+pub fn from_bytes(
+    bytes: &[u8],
+    path: &str,
+    device: &Device,
+) -> Result<(Stage1Net, Stage1Header), ModelError> {
+    let (header, start): (Stage1Header, usize) = unpack(bytes, MAGIC, "stage-1", path)?;
+    let corrupt = |reason: String| ModelError::Corrupt {
+        path: path.into(),
+        reason,
+    };
+    if header.format != 1 {
+        return Err(corrupt(format!("unknown format {}", header.format)));
+    }
+    if header.net.width < 8 || header.net.width > 512 || !header.net.width.is_multiple_of(4) {
+        return Err(corrupt(format!("network width {}", header.net.width)));
+    }
+    let weights = checked_weights(bytes, start, &header.weights_fnv, path)?;
+    let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(weights.to_vec()))
+        .map_err(|e| corrupt(format!("weights: {e}")))?;
+    let net = header
+        .net
+        .init(device)
+        .try_load_record(record)
+        .map_err(|e| corrupt(format!("weights: {e}")))?;
+    if !weights_are_finite(&net) {
+        return Err(ModelError::NotFinite { path: path.into() });
+    }
+    Ok((net, header))
+}
+
+pub fn load(path: &Path, device: &Device) -> Result<(Stage1Net, Stage1Header), ModelError> {
+    let name = path.display().to_string();
+    let bytes = std::fs::read(path).map_err(|source| ModelError::Io {
+        path: name.clone(),
+        source,
+    })?;
+    from_bytes(&bytes, &name, device)
+}

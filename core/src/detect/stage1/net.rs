@@ -1,0 +1,96 @@
+//! The stage-1 network (docs/ARCHITECTURE.md §9.11): a depthwise-separable trunk to stride 4 on
+//! the whole (downscaled) image, dilations 1, 2 and 4 for a ≈ 75 px receptive field, and one
+//! head on the stride-4 grid with six maps: a marker-corner heat map (one logit), the corner's
+//! offset within its cell (2), the unit direction from the corner to the marker's centre (2) and
+//! the marker/background mask (1).
+//!
+//! The reference predicts ordered ROIs over multi-scale default boxes from a 512-channel trunk
+//! (≈ 16 GMAC per 640×448 image). Here ROIs are assembled from the corners and their directions
+//! ([`super::group`]) and large markers are found on a coarser level of an image pyramid, so one
+//! small head at one scale serves markers from 12 px to the whole image (≈ 0.15 GMAC per
+//! 640×480 at width 24). See [`macs`].
+
+use crate::detect::stage2::net::SeparableBlock;
+use burn::module::Module;
+use burn::nn::conv::{Conv2d, Conv2dConfig};
+use burn::nn::{BatchNorm, BatchNormConfig, PaddingConfig2d};
+use burn::tensor::activation::relu;
+use burn::tensor::{Device, Tensor};
+use serde::{Deserialize, Serialize};
+
+/// Output maps: heat, offset x/y, direction x/y, mask.
+pub const MAPS: usize = 6;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct NetConfig {
+    /// Channels of the stride-4 layers; the stem has a quarter, the first block half.
+    pub width: usize,
+}
+
+impl NetConfig {
+    /// (input channels, output channels, stride, dilation) of the trunk's separable blocks.
+    fn trunk(&self) -> [(usize, usize, usize, usize); 5] {
+        let w = self.width;
+        [
+            (w / 4, w / 2, 1, 1),
+            (w / 2, w, 2, 1),
+            (w, w, 1, 1),
+            (w, w, 1, 2),
+            (w, w, 1, 4),
+        ]
+    }
+
+    pub fn init(&self, device: &Device) -> Stage1Net {
+        let w = self.width;
+        Stage1Net {
+            stem: Conv2dConfig::new([1, w / 4], [3, 3])
+                .with_stride([2, 2])
+                .with_padding(PaddingConfig2d::Explicit(1, 1, 1, 1))
+                .with_bias(false)
+                .init(device),
+            stem_bn: BatchNormConfig::new(w / 4).init(device),
+            trunk: self
+                .trunk()
+                .iter()
+                .map(|&(cin, cout, s, d)| SeparableBlock::new(cin, cout, s, d, device))
+                .collect(),
+            head: SeparableBlock::new(w, w, 1, 1, device),
+            out: Conv2dConfig::new([w, MAPS], [1, 1]).init(device),
+        }
+    }
+}
+
+#[derive(Module, Debug)]
+pub struct Stage1Net {
+    stem: Conv2d,
+    stem_bn: BatchNorm,
+    trunk: Vec<SeparableBlock>,
+    head: SeparableBlock,
+    out: Conv2d,
+}
+
+impl Stage1Net {
+    /// `x`: N × 1 × H × W normalised images (H, W multiples of [`STRIDE`]) → N × [`MAPS`] ×
+    /// H/4 × W/4 raw maps (logits for heat and mask).
+    pub fn forward(&self, x: Tensor<4>) -> Tensor<4> {
+        let mut x = relu(self.stem_bn.forward(self.stem.forward(x)));
+        for block in &self.trunk {
+            x = block.forward(x);
+        }
+        self.out.forward(self.head.forward(x))
+    }
+}
+
+/// Multiply-accumulates of one forward pass over `pixels` input pixels (convolutions only).
+pub fn macs(config: &NetConfig, pixels: u64) -> u64 {
+    let w = config.width as u64;
+    let half = pixels / 4;
+    let quarter = pixels / 16;
+    let sep = |cells: u64, cin: u64, cout: u64| cells * (cin * 9 + cin * cout);
+    let mut total = half * 9 * (w / 4);
+    total += sep(half, w / 4, w / 2);
+    total += sep(quarter, w / 2, w);
+    total += 3 * sep(quarter, w, w);
+    total += sep(quarter, w, w);
+    total + quarter * w * MAPS as u64
+}

@@ -1,0 +1,178 @@
+//! Stage 1 on an image: an image pyramid (each level half the last, while its short side is at
+//! least [`MIN_LEVEL_SIDE`]), the network on every level, corners grouped into ROIs per level,
+//! the same ROI seen on two levels kept once.
+
+use super::group::{group, merge_duplicates, GroupOptions, Maps, Proposal};
+use super::model_file::{self, Stage1Header};
+use super::net::{NetConfig, Stage1Net, MAPS};
+use super::STRIDE;
+use crate::detect::stage2::model_file::ModelError;
+use crate::detect::stage2::normalise_patch;
+use crate::image::GrayImage;
+use burn::tensor::{Device, Tensor, TensorData};
+use std::path::Path;
+
+/// The coarsest pyramid level's short side, in pixels: below it a marker that fills the view no
+/// longer has room for its quiet zone on the grid.
+pub const MIN_LEVEL_SIDE: u32 = 96;
+
+pub struct Stage1 {
+    net: Stage1Net,
+    pub config: NetConfig,
+    pub header: Stage1Header,
+    device: Device,
+}
+
+/// How stage 1 looks for markers.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ProposeOptions {
+    pub group: GroupOptions,
+    /// Pyramid levels at most (1: the full resolution only).
+    pub levels: usize,
+}
+
+impl Default for ProposeOptions {
+    fn default() -> Self {
+        Self {
+            group: GroupOptions::default(),
+            levels: 4,
+        }
+    }
+}
+
+impl Stage1 {
+    pub fn load(path: &Path) -> Result<Self, ModelError> {
+        let device = Device::flex();
+        let (net, header) = model_file::load(path, &device)?;
+        Ok(Self::new(net, header, device))
+    }
+
+    pub fn from_bytes(bytes: &[u8], name: &str) -> Result<Self, ModelError> {
+        let device = Device::flex();
+        let (net, header) = model_file::from_bytes(bytes, name, &device)?;
+        Ok(Self::new(net, header, device))
+    }
+
+    pub(crate) fn new(net: Stage1Net, header: Stage1Header, device: Device) -> Self {
+        Self {
+            net,
+            config: header.net,
+            header,
+            device,
+        }
+    }
+
+    /// The network's maps for one image (any size; padded to the grid).
+    pub fn maps(&self, image: &GrayImage) -> Maps {
+        maps_of(&self.net, &self.device, std::slice::from_ref(image))
+            .pop()
+            .expect("one image in, one out")
+    }
+
+    /// Marker ROIs in `image`, best first.
+    pub fn propose(&self, image: &GrayImage, options: &ProposeOptions) -> Vec<Proposal> {
+        propose_with(&self.net, &self.device, image, options)
+    }
+}
+
+/// [`Stage1::propose`] with a given network (training validates with the one it trains).
+pub fn propose_with(
+    net: &Stage1Net,
+    device: &Device,
+    image: &GrayImage,
+    options: &ProposeOptions,
+) -> Vec<Proposal> {
+    let mut proposals = Vec::new();
+    for (level, scale) in pyramid(image, options.levels) {
+        let maps = maps_of(net, device, std::slice::from_ref(&level))
+            .pop()
+            .expect("one image in, one out");
+        let corners = maps.corners(options.group.corner, scale);
+        let mask = |p: [f64; 2]| maps.mask_at(p, scale);
+        proposals.extend(group(&corners, &mask, &options.group));
+    }
+    merge_duplicates(proposals)
+}
+
+/// The image and its halvings, each with its scale (image pixels per level pixel).
+pub fn pyramid(image: &GrayImage, levels: usize) -> Vec<(GrayImage, f64)> {
+    let mut out = vec![(image.clone(), 1.0)];
+    while out.len() < levels.max(1) {
+        let (last, scale) = out.last().expect("level 0 is there");
+        if last.width.min(last.height) / 2 < MIN_LEVEL_SIDE {
+            break;
+        }
+        let half = halve(last);
+        let scale = scale * 2.0;
+        out.push((half, scale));
+    }
+    out
+}
+
+/// 2 × 2 box average (odd last rows and columns dropped).
+pub fn halve(image: &GrayImage) -> GrayImage {
+    let (w, h) = (image.width / 2, image.height / 2);
+    let mut out = GrayImage::new(w, h, 0);
+    let src = |x: u32, y: u32| image.pixels[(y * image.width + x) as usize] as u32;
+    for y in 0..h {
+        for x in 0..w {
+            let sum = src(2 * x, 2 * y)
+                + src(2 * x + 1, 2 * y)
+                + src(2 * x, 2 * y + 1)
+                + src(2 * x + 1, 2 * y + 1);
+            out.pixels[(y * w + x) as usize] = ((sum + 2) / 4) as u8;
+        }
+    }
+    out
+}
+
+/// The network input of same-sized images: each standardised like a stage-2 patch, padded with
+/// zeros (its mean) to a multiple of the stride. Returns the data and the padded width, height.
+pub fn input_of(images: &[GrayImage]) -> (Vec<f32>, usize, usize) {
+    let (w, h) = (images[0].width as usize, images[0].height as usize);
+    let pw = w.div_ceil(STRIDE) * STRIDE;
+    let ph = h.div_ceil(STRIDE) * STRIDE;
+    let mut data = vec![0.0f32; images.len() * pw * ph];
+    for (n, image) in images.iter().enumerate() {
+        let normalised = normalise_patch(image);
+        for y in 0..h {
+            let dst = n * pw * ph + y * pw;
+            data[dst..dst + w].copy_from_slice(&normalised[y * w..(y + 1) * w]);
+        }
+    }
+    (data, pw, ph)
+}
+
+/// Maps from raw network output for N images (N × MAPS × rows × columns).
+pub fn maps_from_raw(raw: &[f32], n: usize, columns: usize, rows: usize) -> Vec<Maps> {
+    let cells = columns * rows;
+    let sigmoid = |x: f32| 1.0 / (1.0 + (-x).exp());
+    (0..n)
+        .map(|i| {
+            let base = i * MAPS * cells;
+            let channel = |c: usize| &raw[base + c * cells..base + (c + 1) * cells];
+            let (ox, oy, dx, dy) = (channel(1), channel(2), channel(3), channel(4));
+            Maps {
+                columns,
+                rows,
+                heat: channel(0).iter().map(|&v| sigmoid(v)).collect(),
+                offset: (0..cells).map(|k| [ox[k], oy[k]]).collect(),
+                direction: (0..cells).map(|k| [dx[k], dy[k]]).collect(),
+                mask: channel(5).iter().map(|&v| sigmoid(v)).collect(),
+            }
+        })
+        .collect()
+}
+
+/// Runs `net` on same-sized images.
+pub fn maps_of(net: &Stage1Net, device: &Device, images: &[GrayImage]) -> Vec<Maps> {
+    let (data, pw, ph) = input_of(images);
+    let x = Tensor::<4>::from_data(TensorData::new(data, [images.len(), 1, ph, pw]), device);
+    let raw = net
+        .forward(x)
+        .into_data()
+        .convert::<f32>()
+        .try_into_vec::<f32>()
+        .expect("f32 tensor");
+    maps_from_raw(&raw, images.len(), pw / STRIDE, ph / STRIDE)
+}

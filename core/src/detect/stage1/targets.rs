@@ -1,0 +1,174 @@
+//! What the stage-1 network is trained to output for an image, on its stride-4 grid: a Gaussian
+//! bump at each marker corner, the corner's offset from the centre of the cells around it, the
+//! unit direction from the corner to the marker's centre, and the marker mask.
+//!
+//! The centre is where the diagonals cross: under perspective that is the projection of the
+//! marker's centre, and the direction from a corner to it points exactly at the opposite corner,
+//! which is what [`super::group`] relies on.
+
+use super::STRIDE;
+
+/// A marker as stage 1 sees it: its four ROI corners (in the family's order) and its outline.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MarkerQuad {
+    pub corners: [[f64; 2]; 4],
+    pub outline: Vec<[f64; 2]>,
+}
+
+/// Per-cell targets, row-major over a `columns` × `rows` grid.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Targets {
+    pub columns: usize,
+    pub rows: usize,
+    /// Gaussian bumps (max over corners), 1 at each corner's own cell.
+    pub heat: Vec<f32>,
+    /// The corner's position relative to the cell centre, in cells.
+    pub offset: Vec<[f32; 2]>,
+    /// Unit vector from the corner to the marker centre.
+    pub direction: Vec<[f32; 2]>,
+    /// 1 where `offset` and `direction` are defined (the 3 × 3 cells around each corner).
+    pub regress: Vec<f32>,
+    pub mask: Vec<f32>,
+}
+
+/// Gaussian bump width in cells: narrow enough that the corners of a 12-px marker (3 cells
+/// apart) stay separate peaks.
+const SIGMA_CELLS: f64 = 0.8;
+
+/// Where the diagonals 0–2 and 1–3 cross (`None` for a degenerate quad).
+pub fn diagonal_crossing(c: &[[f64; 2]; 4]) -> Option<[f64; 2]> {
+    let d1 = [c[2][0] - c[0][0], c[2][1] - c[0][1]];
+    let d2 = [c[3][0] - c[1][0], c[3][1] - c[1][1]];
+    let den = d1[0] * d2[1] - d1[1] * d2[0];
+    if den.abs() < 1e-9 {
+        return None;
+    }
+    let r = [c[1][0] - c[0][0], c[1][1] - c[0][1]];
+    let t = (r[0] * d2[1] - r[1] * d2[0]) / den;
+    Some([c[0][0] + t * d1[0], c[0][1] + t * d1[1]])
+}
+
+/// Even-odd point-in-polygon test.
+pub fn inside(polygon: &[[f64; 2]], p: [f64; 2]) -> bool {
+    let mut inside = false;
+    let n = polygon.len();
+    for i in 0..n {
+        let (a, b) = (polygon[i], polygon[(i + n - 1) % n]);
+        if (a[1] > p[1]) != (b[1] > p[1])
+            && p[0] < (b[0] - a[0]) * (p[1] - a[1]) / (b[1] - a[1]) + a[0]
+        {
+            inside = !inside;
+        }
+    }
+    inside
+}
+
+/// The targets for a `width` × `height` image (multiples of [`STRIDE`]) showing `markers`.
+pub fn encode(width: usize, height: usize, markers: &[MarkerQuad]) -> Targets {
+    let (columns, rows) = (width / STRIDE, height / STRIDE);
+    let cells = columns * rows;
+    let mut t = Targets {
+        columns,
+        rows,
+        heat: vec![0.0; cells],
+        offset: vec![[0.0; 2]; cells],
+        direction: vec![[0.0; 2]; cells],
+        regress: vec![0.0; cells],
+        mask: vec![0.0; cells],
+    };
+    let s = STRIDE as f64;
+    for m in markers {
+        let Some(centre) = diagonal_crossing(&m.corners) else {
+            continue;
+        };
+        for cy in 0..rows {
+            for cx in 0..columns {
+                let p = [(cx as f64 + 0.5) * s, (cy as f64 + 0.5) * s];
+                if inside(&m.outline, p) {
+                    t.mask[cy * columns + cx] = 1.0;
+                }
+            }
+        }
+        for corner in m.corners {
+            let (gx, gy) = (corner[0] / s, corner[1] / s);
+            let (dx, dy) = (centre[0] - corner[0], centre[1] - corner[1]);
+            let len = dx.hypot(dy).max(1e-9);
+            let dir = [(dx / len) as f32, (dy / len) as f32];
+            let (ix, iy) = (gx.floor() as i64, gy.floor() as i64);
+            for ny in iy - 3..=iy + 3 {
+                for nx in ix - 3..=ix + 3 {
+                    if nx < 0 || ny < 0 || nx >= columns as i64 || ny >= rows as i64 {
+                        continue;
+                    }
+                    let i = ny as usize * columns + nx as usize;
+                    let (ox, oy) = (gx - (nx as f64 + 0.5), gy - (ny as f64 + 0.5));
+                    let bump = if (nx, ny) == (ix, iy) {
+                        1.0
+                    } else {
+                        (-(ox * ox + oy * oy) / (2.0 * SIGMA_CELLS * SIGMA_CELLS)).exp() as f32
+                    };
+                    // The corner's own cell is the only exact 1, so the loss knows its positives.
+                    let bump = if (nx, ny) == (ix, iy) {
+                        bump
+                    } else {
+                        bump.min(0.99)
+                    };
+                    t.heat[i] = t.heat[i].max(bump);
+                    if (nx - ix).abs() <= 1 && (ny - iy).abs() <= 1 {
+                        t.offset[i] = [ox as f32, oy as f32];
+                        t.direction[i] = dir;
+                        t.regress[i] = 1.0;
+                    }
+                }
+            }
+        }
+    }
+    t
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn corners_are_peaks_with_their_offsets_and_directions_to_the_centre() {
+        let corners = [[20.5, 21.0], [60.0, 20.0], [61.0, 62.0], [19.0, 60.0]];
+        let t = encode(
+            96,
+            80,
+            &[MarkerQuad {
+                corners,
+                outline: corners.to_vec(),
+            }],
+        );
+        assert_eq!((t.columns, t.rows), (24, 20));
+        let peaks: Vec<usize> = (0..t.heat.len()).filter(|&i| t.heat[i] == 1.0).collect();
+        assert_eq!(peaks.len(), 4);
+        for c in corners {
+            let i = (c[1] / 4.0) as usize * 24 + (c[0] / 4.0) as usize;
+            assert_eq!(t.heat[i], 1.0);
+            let cell = [(i % 24) as f64 + 0.5, (i / 24) as f64 + 0.5];
+            let back = [
+                (cell[0] + t.offset[i][0] as f64) * 4.0,
+                (cell[1] + t.offset[i][1] as f64) * 4.0,
+            ];
+            assert!((back[0] - c[0]).abs() < 1e-4 && (back[1] - c[1]).abs() < 1e-4);
+            let d = t.direction[i];
+            let to_centre = [40.0 - c[0], 40.0 - c[1]];
+            let cos = (d[0] as f64 * to_centre[0] + d[1] as f64 * to_centre[1])
+                / to_centre[0].hypot(to_centre[1]);
+            assert!(cos > 0.99, "{cos}");
+        }
+        assert_eq!(t.mask[10 * 24 + 10], 1.0);
+        assert_eq!(t.mask[2 * 24 + 2], 0.0);
+        assert_eq!(t.regress.iter().filter(|&&r| r > 0.0).count(), 36);
+    }
+
+    #[test]
+    fn the_diagonals_of_a_perspective_quad_cross_off_its_mean() {
+        let c = [[0.0, 0.0], [10.0, 0.0], [8.0, 6.0], [2.0, 6.0]];
+        let x = diagonal_crossing(&c).unwrap();
+        assert!((x[1] - 60.0 / 16.0).abs() < 1e-9, "{x:?}");
+        assert!(x[1] < 3.0 + 1.0);
+    }
+}

@@ -1,0 +1,65 @@
+//! Stage 1's training scenes: the synthesiser's quad mode at 256², one family per scene drawn
+//! from the stage's families (square built-ins and random designs), marker sides log-uniform
+//! from 12 px to about 160 px (larger markers are found on a coarser pyramid level), some scenes
+//! empty, some with heavy noise.
+//!
+//! Sample `i` of a run is a pure function of (run seed, i).
+
+use crate::detect::stage1::targets::{encode, MarkerQuad, Targets};
+use crate::detect::stage2::normalise_patch;
+use crate::family::Family;
+use crate::image::GrayImage;
+use crate::synth::{synthesize, Mode, SynthConfig};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+/// Scene side in pixels.
+pub const SCENE: u32 = 256;
+
+pub struct SceneSample {
+    pub image: GrayImage,
+    /// [`normalise_patch`] of the image: the network's input.
+    pub input: Vec<f32>,
+    pub targets: Targets,
+    /// The markers' ROI corners, for validation.
+    pub quads: Vec<[[f64; 2]; 4]>,
+}
+
+/// The scene of sample `seed`.
+pub fn make_sample(families: &[Family], seed: u64) -> Result<SceneSample, String> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let family = &families[rng.random_range(0..families.len())];
+    let mut config = SynthConfig::new(Mode::Quad);
+    config.width = SCENE;
+    config.height = SCENE;
+    let (lo, hi) = (0.05f64.ln(), 0.62f64.ln());
+    let side = rng.random_range(lo..hi).exp();
+    config.quad_side = [side, side * 1.2];
+    config.markers = if rng.random_bool(0.08) {
+        [0, 0]
+    } else {
+        [1, 4]
+    };
+    config.augment.motion_blur_length = [3, 15];
+    config.augment.blur_sigma = [0.0, 2.0];
+    if rng.random_bool(0.2) {
+        config.augment.noise_sigma = [15.0, 90.0];
+    }
+    let sample = synthesize(family, &config, rng.random()).map_err(|e| e.to_string())?;
+    let quads: Vec<MarkerQuad> = sample
+        .truth
+        .markers
+        .iter()
+        .map(|m| MarkerQuad {
+            corners: [m.roi[0], m.roi[1], m.roi[2], m.roi[3]],
+            outline: m.mask.clone(),
+        })
+        .collect();
+    let targets = encode(SCENE as usize, SCENE as usize, &quads);
+    Ok(SceneSample {
+        input: normalise_patch(&sample.image),
+        image: sample.image,
+        targets,
+        quads: quads.iter().map(|q| q.corners).collect(),
+    })
+}

@@ -1,0 +1,190 @@
+//! Stage 1's part of training: one ROI network for every square family, on synthesised scenes
+//! ([`data`]) with its losses ([`loss`]) and validation ([`validate`]).
+
+pub mod data;
+pub mod loss;
+pub mod validate;
+
+use super::stage::TrainStage;
+use crate::detect::stage1::model_file;
+use crate::detect::stage1::net::{macs, NetConfig, Stage1Net};
+use crate::detect::stage1::pipeline::{propose_with, ProposeOptions};
+use crate::detect::stage2::model_file::fnv1a;
+use crate::family::designs::random_square;
+use crate::family::Family;
+use burn::module::Module;
+use burn::tensor::{Device, Tensor};
+use data::{make_sample, SceneSample, SCENE};
+use loss::{losses, Batch, LossTerms};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+use validate::Metrics;
+
+/// Built-in grid families stage 1 is trained on. AprilTag's circle21h7 and standard41h12 are
+/// left out: their ROI corners lie inside the drawing (data cells surround the border), which a
+/// corner detector cannot see as corners.
+pub const TRAINING_FAMILIES: &[&str] = &[
+    "apriltag-16h5",
+    "apriltag-25h9",
+    "apriltag-36h11",
+    "apriltag-xa-36h11",
+    "apriltag-xo-36h11",
+    "aruco-4x4_50",
+    "aruco-5x5_100",
+    "aruco-6x6_250",
+    "aruco-mip-36h12",
+    "quaternary-6x6",
+    "topotag-like",
+];
+
+/// Random designs mixed into the training scenes, and the seed that draws them.
+pub const RANDOM_DESIGNS: usize = 24;
+const DESIGN_SEED: u64 = 0xDE51_6715;
+
+/// The name under which stage-1 runs and models are reported.
+pub const SUBJECT: &str = "square markers";
+
+pub struct RoiStage {
+    families: Vec<Family>,
+    net: NetConfig,
+}
+
+/// What a stage-1 report says about the network.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RoiInfo {
+    pub net: NetConfig,
+    /// Training scene side in pixels.
+    pub scene: u32,
+    pub families: Vec<String>,
+}
+
+/// `count` random square designs drawn from `seed` (designs the generator cannot turn into a
+/// family, e.g. a repeated code, are skipped).
+pub fn random_designs(count: usize, seed: u64) -> Vec<Family> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut out = Vec::new();
+    let mut index = 0;
+    while out.len() < count && index < 4 * count {
+        let spec = random_square(index, &mut |k| rng.random_range(0..k));
+        if let Ok(f) = Family::from_spec(spec) {
+            out.push(f);
+        }
+        index += 1;
+    }
+    out
+}
+
+impl RoiStage {
+    pub fn new(width: usize) -> Result<Self, String> {
+        let mut families = Vec::new();
+        for name in TRAINING_FAMILIES {
+            let family = crate::builtin::get(name)
+                .ok_or_else(|| format!("built-in family {name} is missing"))?
+                .map_err(|e| e.to_string())?;
+            families.push(family);
+        }
+        families.extend(random_designs(RANDOM_DESIGNS, DESIGN_SEED));
+        Ok(Self {
+            families,
+            net: NetConfig { width },
+        })
+    }
+
+    /// Stage 1 for the given families only (a family's own fine-tuned ROI model).
+    pub fn for_families(families: Vec<Family>, width: usize) -> Self {
+        Self {
+            families,
+            net: NetConfig { width },
+        }
+    }
+
+    fn family_names(&self) -> Vec<String> {
+        self.families.iter().map(|f| f.name().to_string()).collect()
+    }
+}
+
+impl TrainStage for RoiStage {
+    type Net = Stage1Net;
+    type Sample = SceneSample;
+    type Metrics = Metrics;
+    type Terms = LossTerms;
+    type Info = RoiInfo;
+
+    fn subject(&self) -> String {
+        SUBJECT.into()
+    }
+
+    fn subject_hash(&self) -> String {
+        format!("{:016x}", fnv1a(self.family_names().join(",").as_bytes()))
+    }
+
+    fn info(&self) -> RoiInfo {
+        RoiInfo {
+            net: self.net,
+            scene: SCENE,
+            families: self.family_names(),
+        }
+    }
+
+    fn macs(&self) -> u64 {
+        macs(&self.net, (SCENE * SCENE) as u64)
+    }
+
+    fn init(&self, device: &Device) -> Stage1Net {
+        self.net.init(device)
+    }
+
+    fn sample(&self, seed: u64) -> Result<SceneSample, String> {
+        make_sample(&self.families, seed)
+    }
+
+    fn loss(
+        &self,
+        net: &Stage1Net,
+        samples: &[SceneSample],
+        device: &Device,
+    ) -> (Tensor<1>, LossTerms) {
+        let batch = Batch::new(samples, device);
+        losses(net.forward(batch.input.clone()), &batch)
+    }
+
+    fn total(terms: &LossTerms) -> f64 {
+        terms.total as f64
+    }
+
+    fn validation_set(&self, size: usize) -> Result<Vec<SceneSample>, String> {
+        validate::validation_set(&self.families, size)
+    }
+
+    fn validate(&self, net: &Stage1Net, set: &[SceneSample]) -> Metrics {
+        let net = net.valid();
+        let device = Device::flex();
+        let options = ProposeOptions::default();
+        let proposals: Vec<_> = set
+            .iter()
+            .map(|s| propose_with(&net, &device, &s.image, &options))
+            .collect();
+        validate::score(set, &proposals)
+    }
+
+    fn inference(&self, net: &Stage1Net) -> Stage1Net {
+        net.valid()
+    }
+
+    fn model_bytes(&self, net: Stage1Net, step: u64) -> Result<Vec<u8>, String> {
+        model_file::to_bytes(net, &self.net, &self.family_names(), step)
+    }
+
+    fn load_model(&self, bytes: &[u8], name: &str, device: &Device) -> Result<Stage1Net, String> {
+        let (net, header) =
+            model_file::from_bytes(bytes, name, device).map_err(|e| e.to_string())?;
+        if header.net != self.net {
+            return Err(format!(
+                "{name}: the checkpoint's network ({:?}) differs from the requested one ({:?})",
+                header.net, self.net
+            ));
+        }
+        Ok(net)
+    }
+}
