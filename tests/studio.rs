@@ -617,3 +617,82 @@ fn the_families_panel_shows_each_family_drawn_with_its_numbers() {
     h.run();
     assert_eq!(spec(&h).name, "aruco-6x6_250-copy");
 }
+
+/// Train panel: an unsaved design is refused in words; once saved, a run starts in the
+/// background, shows progress and writes checkpoints while the window keeps drawing; Stop leaves
+/// a resumable run, Resume finishes it and the model is attached next to the family file.
+#[test]
+fn the_train_panel_trains_stops_resumes_and_attaches_the_model() {
+    use tagsmith_studio::studio::train::{attached_model, Settings};
+    let s = setup();
+    let mut h = studio(&s);
+    duplicate(&mut h, "apriltag-16h5");
+    h.get_by_label("Train").click();
+    h.run();
+    assert_eq!(h.state().panel, Panel::Train);
+    assert!(h.query_by_label_contains("Save the design first").is_some());
+    h.state_mut().save();
+    h.run();
+    assert!(h.query_by_label_contains("Save the design first").is_none());
+    h.state_mut().train.settings = Settings {
+        steps: 2000,
+        batch: 2,
+        width: 8,
+        ..Settings::default()
+    };
+    h.run();
+    h.get_by_label("Start").click();
+    h.run();
+    let mut frames = Vec::new();
+    let start = Instant::now();
+    while h
+        .state()
+        .train
+        .live()
+        .and_then(|l| l.last_checkpoint)
+        .is_none()
+    {
+        assert!(start.elapsed() < Duration::from_secs(120), "no checkpoint");
+        let frame = Instant::now();
+        h.step();
+        frames.push(frame.elapsed().as_secs_f64() * 1e3);
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    frames.sort_by(f64::total_cmp);
+    println!(
+        "frame time while training: median {:.1} ms over {} frames",
+        frames[frames.len() / 2],
+        frames.len()
+    );
+    assert!(h.query_by_label_contains("samples/s").is_some());
+    h.get_by_label("Stop").click();
+    run_until(&mut h, "the run to stop", |st| !st.train.is_running());
+    h.run();
+    let live = h.state().train.live().unwrap();
+    let stopped_at = live.step;
+    assert!(stopped_at < 2000);
+    let design_file = h.state().design.as_ref().unwrap().path.clone().unwrap();
+    let runs = s.user.with_file_name("runs");
+    let run_dir = std::fs::read_dir(&runs)
+        .unwrap()
+        .next()
+        .unwrap()
+        .unwrap()
+        .path();
+    assert!(run_dir.join("checkpoint.bin").exists());
+    // Finish a few steps past the checkpoint.
+    h.state_mut().train.settings.steps = stopped_at + 3;
+    h.run();
+    h.get_by_label("Resume").click();
+    h.run();
+    run_until(&mut h, "the resumed run", |st| {
+        !st.train.is_running() && st.train.outcome.is_some()
+    });
+    h.run();
+    let outcome = h.state().train.outcome.clone().unwrap();
+    assert!(outcome.is_ok(), "{outcome:?}");
+    assert!(attached_model(&design_file).exists(), "{outcome:?}");
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(run_dir.join("report.json")).unwrap()).unwrap();
+    assert!(report["resumed_from"].as_u64().is_some());
+}

@@ -1,7 +1,7 @@
 //! `synth`: training images with exact ground truth.
 
 use super::common::{load_family, progress_bar, write_output};
-use super::error::{failure, Classify, Result};
+use super::error::{bad_input, failure, Classify, Result};
 use anyhow::Context;
 use clap::Args;
 use std::path::PathBuf;
@@ -29,6 +29,10 @@ pub struct SynthArgs {
     /// Exact renderings: no noise, blur, lighting or distortion.
     #[arg(long)]
     pub no_augment: bool,
+    /// Markers per image, N or MIN-MAX (0 gives marker-free scenes, for false-positive tests)
+    /// [range: 0..=64] [default: 1-3; patch mode: 1].
+    #[arg(long, value_parser = marker_count)]
+    pub markers: Option<[u32; 2]>,
     /// Output folder (created if missing).
     #[arg(short, long)]
     pub output: PathBuf,
@@ -38,6 +42,24 @@ pub struct SynthArgs {
 /// is made.
 fn image_side() -> clap::builder::RangedU64ValueParser<u32> {
     clap::builder::RangedU64ValueParser::<u32>::new().range(16..=8192)
+}
+
+fn marker_count(text: &str) -> std::result::Result<[u32; 2], String> {
+    let number = |t: &str| {
+        t.trim()
+            .parse::<u32>()
+            .ok()
+            .filter(|&n| n <= 64)
+            .ok_or_else(|| format!("{t:?} is not a marker count in 0..=64"))
+    };
+    let range = match text.split_once('-') {
+        Some((lo, hi)) => [number(lo)?, number(hi)?],
+        None => [number(text)?; 2],
+    };
+    if range[0] > range[1] {
+        return Err(format!("{text:?}: the minimum is above the maximum"));
+    }
+    Ok(range)
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
@@ -62,6 +84,12 @@ impl SynthArgs {
         config.height = self.height.unwrap_or(config.height);
         if self.no_augment {
             config.augment = synth::augment::AugmentRanges::none();
+        }
+        if let Some(range) = self.markers {
+            if mode == Mode::Patch && range != [1, 1] {
+                return Err(bad_input!("--markers: a patch holds exactly one marker"));
+            }
+            config.markers = range;
         }
         std::fs::create_dir_all(&self.output)
             .with_context(|| format!("cannot create {}", self.output.display()))

@@ -11,6 +11,31 @@ pub enum Purpose {
     Family,
     /// A standard code table (OpenCV or AprilTag 3 JSON) for the design's codebook.
     CodeTable,
+    /// A photograph or rendering for the Detect panel.
+    Image,
+}
+
+/// Extensions the image reader decodes.
+pub const IMAGE_EXTENSIONS: &[&str] = &[
+    "png", "jpg", "jpeg", "bmp", "tif", "tiff", "webp", "pgm", "pnm", "ppm",
+];
+
+impl Purpose {
+    /// The open dialog's filter: its name and extensions.
+    pub fn filter(self) -> (&'static str, &'static [&'static str]) {
+        match self {
+            Purpose::Family | Purpose::CodeTable => ("JSON", &["json"]),
+            Purpose::Image => ("Images", IMAGE_EXTENSIONS),
+        }
+    }
+}
+
+/// Whether a file's name says it is an image (a dropped file is routed by it).
+pub fn is_image_name(name: &str) -> bool {
+    Path::new(name)
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| IMAGE_EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
 }
 
 /// A file the user opened (or dropped, or that sits in the user's family folder).
@@ -204,8 +229,9 @@ impl FileAccess for NativeFiles {
     }
 
     fn request_open(&mut self, purpose: Purpose) {
+        let (name, extensions) = purpose.filter();
         let picked = rfd::FileDialog::new()
-            .add_filter("JSON", &["json"])
+            .add_filter(name, extensions)
             .pick_file();
         if let Some(path) = picked {
             self.opened.push(read_file(path, purpose));
@@ -276,8 +302,9 @@ impl FileAccess for WebFiles {
     fn request_open(&mut self, purpose: Purpose) {
         let inbox = self.opened.clone();
         wasm_bindgen_futures::spawn_local(async move {
+            let (name, extensions) = purpose.filter();
             let picked = rfd::AsyncFileDialog::new()
-                .add_filter("JSON", &["json"])
+                .add_filter(name, extensions)
                 .pick_file()
                 .await;
             if let Some(file) = picked {

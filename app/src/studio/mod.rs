@@ -5,11 +5,13 @@
 pub mod codegen;
 pub mod design;
 pub mod designer;
+pub mod detect;
 pub mod families;
 pub mod files;
 pub mod job;
 pub mod preview;
 pub mod print;
+pub mod train;
 
 use design::Design;
 use egui::{Key, KeyboardShortcut, Modifiers};
@@ -29,11 +31,19 @@ pub enum Panel {
     Families,
     Designer,
     Print,
+    Train,
+    Detect,
 }
 
 impl Panel {
     /// In tab order.
-    pub const ALL: [Panel; 3] = [Panel::Families, Panel::Designer, Panel::Print];
+    pub const ALL: [Panel; 5] = [
+        Panel::Families,
+        Panel::Designer,
+        Panel::Print,
+        Panel::Train,
+        Panel::Detect,
+    ];
 
     /// The tab's text.
     pub fn label(self) -> &'static str {
@@ -41,6 +51,8 @@ impl Panel {
             Panel::Families => "Families",
             Panel::Designer => "Designer",
             Panel::Print => "Print",
+            Panel::Train => "Train",
+            Panel::Detect => "Detect",
         }
     }
 
@@ -50,6 +62,8 @@ impl Panel {
             Panel::Families => "built-in families and your own; start a design from one",
             Panel::Designer => "edit the design: layout, categories, keypoints, ROI, codebook",
             Panel::Print => "lay the design's markers out on pages and export PDF or SVG",
+            Panel::Train => "train the detector for the design (desktop)",
+            Panel::Detect => "find markers in photographs with the learned detector",
         }
     }
 
@@ -59,6 +73,8 @@ impl Panel {
             Panel::Families => "families",
             Panel::Designer => "designer",
             Panel::Print => "print",
+            Panel::Train => "train",
+            Panel::Detect => "detect",
         }
     }
 
@@ -71,6 +87,8 @@ impl Panel {
             Panel::Families => families::show(studio, ui),
             Panel::Designer => designer::show(studio, ui, ctx),
             Panel::Print => print::show(studio, ui, ctx),
+            Panel::Train => train::show(studio, ui),
+            Panel::Detect => detect::show(studio, ui, ctx),
         }
     }
 }
@@ -125,6 +143,8 @@ pub struct Studio {
     pub files: Box<dyn FileAccess>,
     pub designer: designer::DesignerState,
     pub print: print::PrintState,
+    pub detect: detect::DetectState,
+    pub train: train::TrainState,
     textures: preview::Textures,
     pending_replace: Option<PendingReplace>,
     /// The window was asked to close with unsaved changes; the confirmation is showing.
@@ -142,6 +162,8 @@ impl Studio {
             files,
             designer: designer::DesignerState::default(),
             print: print::PrintState::default(),
+            detect: detect::DetectState::default(),
+            train: train::TrainState::default(),
             textures: preview::Textures::default(),
             pending_replace: None,
             quit_prompt: false,
@@ -345,8 +367,13 @@ impl Studio {
         }
         for file in self.files.take_opened() {
             match file.purpose {
+                // A dropped image goes to the Detect panel.
+                Purpose::Family if files::is_image_name(&file.name) => {
+                    detect::open_image(self, file)
+                }
                 Purpose::Family => self.open_file(file),
                 Purpose::CodeTable => designer::import_table(self, &file.name, &file.bytes),
+                Purpose::Image => detect::open_image(self, file),
             }
         }
     }
@@ -431,7 +458,7 @@ impl Studio {
                 ui.label(text.as_str());
             }
             None => {
-                ui.weak("Drop a family file (.json) on the window to open it.");
+                ui.weak("Drop a family file (.json) on the window to open it, or an image to detect on.");
             }
         });
     }

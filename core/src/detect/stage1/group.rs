@@ -232,16 +232,7 @@ pub fn group(
             if signed_area(&q) < 0.0 {
                 q = [pa, pd, pb, pc];
             }
-            let sides: Vec<f64> = (0..4)
-                .map(|i| {
-                    let e = sub(q[(i + 1) % 4], q[i]);
-                    e[0].hypot(e[1])
-                })
-                .collect();
-            let (shortest, longest) = sides
-                .iter()
-                .fold((f64::MAX, 0.0f64), |(lo, hi), &x| (lo.min(x), hi.max(x)));
-            if shortest < 0.15 * longest {
+            if !sides_balanced(&q) {
                 continue;
             }
             let cover = mask_cover(&q, mask);
@@ -251,6 +242,47 @@ pub fn group(
             let confidence = [a, b, c, d].iter().map(|&i| corners[i].score).sum::<f64>() / 4.0;
             candidates.push((
                 [a, b, c, d],
+                Proposal {
+                    corners: q,
+                    score: confidence * cover,
+                },
+            ));
+        }
+    }
+    // A corner lost to blur, glare or occlusion: a diagonal and a third corner pointing at its
+    // middle give the fourth by completing the parallelogram — a few pixels off under
+    // perspective, which stage 2's second pass corrects. Scored as if the fourth corner had
+    // confidence 0, so any complete quad over the same corners wins.
+    for &(a, b) in &diagonals {
+        let (pa, pb) = (corners[a].at, corners[b].at);
+        let middle = [(pa[0] + pb[0]) / 2.0, (pa[1] + pb[1]) / 2.0];
+        for (c, corner) in corners.iter().enumerate() {
+            if c == a || c == b {
+                continue;
+            }
+            let to_middle = sub(middle, corner.at);
+            let len = to_middle[0].hypot(to_middle[1]);
+            if len < options.min_diagonal / 2.0
+                || dot(corner.direction, [to_middle[0] / len, to_middle[1] / len])
+                    <= options.aligned
+            {
+                continue;
+            }
+            let pd = [pa[0] + pb[0] - corner.at[0], pa[1] + pb[1] - corner.at[1]];
+            let mut q = [pa, corner.at, pb, pd];
+            if signed_area(&q) < 0.0 {
+                q = [pa, pd, pb, corner.at];
+            }
+            if !sides_balanced(&q) {
+                continue;
+            }
+            let cover = mask_cover(&q, mask);
+            if cover < options.mask {
+                continue;
+            }
+            let confidence = (corners[a].score + corners[b].score + corner.score) / 4.0;
+            candidates.push((
+                [a, b, c, c],
                 Proposal {
                     corners: q,
                     score: confidence * cover,
@@ -276,6 +308,16 @@ pub fn group(
         taken.push(p);
     }
     taken
+}
+
+/// No side under 15 % of the longest: flatter quads are slivers of clutter, not markers.
+fn sides_balanced(q: &[[f64; 2]; 4]) -> bool {
+    let sides = (0..4).map(|i| {
+        let e = sub(q[(i + 1) % 4], q[i]);
+        e[0].hypot(e[1])
+    });
+    let (shortest, longest) = sides.fold((f64::MAX, 0.0f64), |(lo, hi), x| (lo.min(x), hi.max(x)));
+    shortest >= 0.15 * longest
 }
 
 /// The mean of the four corners.
@@ -361,6 +403,22 @@ mod tests {
                 assert!(q.corners.contains(&p));
             }
         }
+    }
+
+    #[test]
+    fn a_lost_corner_is_completed_from_the_other_three() {
+        let q = [[10.0, 10.0], [50.0, 12.0], [52.0, 50.0], [8.0, 48.0]];
+        let mut corners = marker(q);
+        corners.remove(3);
+        let everywhere = |_: [f64; 2]| 1.0;
+        let quads = group(&corners, &everywhere, &GroupOptions::default());
+        assert_eq!(quads.len(), 1, "{quads:?}");
+        let p = quads[0];
+        assert!(signed_area(&p.corners) > 0.0);
+        // The fourth corner by parallelogram: (10,10) + (52,50) − (50,12).
+        assert!(p.corners.contains(&[12.0, 48.0]), "{p:?}");
+        // A complete marker outscores a completed one.
+        assert!(p.score < 0.9 * 0.8);
     }
 
     #[test]

@@ -188,3 +188,6 @@ impl TrainStage for RoiStage {
         Ok(net)
     }
 }
+
+#[cfg(test)]
+mod tests;

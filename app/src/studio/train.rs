@@ -1,0 +1,502 @@
+//! The Train panel (desktop): train stage 2 for the design being edited — or stage 1 for it
+//! alone — with the defaults that made the shipped models, in the background through the same
+//! `tagsmith::train` loop as `tagsmith train` (atomic checkpoints, resume), with live loss curves
+//! per term (egui_plot), validation figures, samples/s, data wait and ETA. A finished run's model
+//! is attached to the family: copied next to the family file as `NAME.stage2.bin`, where the
+//! Detect panel finds it.
+//!
+//! Training is desktop-only; the web build's panel says so.
+
+#[cfg(not(target_arch = "wasm32"))]
+pub use desktop::*;
+
+/// Nothing to keep where the panel only explains (a struct, not a unit, so the studio builds it
+/// the same way on every target).
+#[cfg(target_arch = "wasm32")]
+#[derive(Default)]
+pub struct TrainState {
+    _none: (),
+}
+
+#[cfg(target_arch = "wasm32")]
+pub fn show(_studio: &mut super::Studio, ui: &mut egui::Ui) {
+    ui.heading("Train");
+    ui.label("Training runs in the desktop studio and in `tagsmith train`, not in a browser.");
+}
+
+/// Where a family's own stage-2 model lives: next to its family file.
+pub fn attached_model(family_file: &std::path::Path) -> std::path::PathBuf {
+    family_file.with_extension("stage2.bin")
+}
+
+#[cfg(not(target_arch = "wasm32"))]
+mod desktop {
+    use super::super::job::Job;
+    use super::super::Studio;
+    use egui_plot::{Legend, Line, Plot, PlotPoints};
+    use std::collections::BTreeMap;
+    use std::path::PathBuf;
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::{Arc, Mutex};
+    use std::time::Instant;
+    use tagsmith::family::Family;
+    use tagsmith::train::stage::TrainStage;
+    use tagsmith::train::stage1::RoiStage;
+    use tagsmith::train::stage2::KeypointStage;
+    use tagsmith::train::{self, Event, TrainConfig};
+
+    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    pub enum StageChoice {
+        Keypoints,
+        Roi,
+    }
+
+    /// What the user set up for the next run.
+    #[derive(Debug, Clone, PartialEq)]
+    pub struct Settings {
+        pub stage: StageChoice,
+        pub steps: u64,
+        pub batch: usize,
+        pub width: usize,
+        pub learning_rate: f64,
+    }
+
+    impl Default for Settings {
+        /// The shipped stage-2 models' settings.
+        fn default() -> Self {
+            let c = TrainConfig::default();
+            Self {
+                stage: StageChoice::Keypoints,
+                steps: c.steps,
+                batch: c.batch,
+                width: c.width,
+                learning_rate: c.learning_rate,
+            }
+        }
+    }
+
+    /// What the run has reported so far, shared with its thread.
+    #[derive(Debug, Default, Clone)]
+    pub struct Live {
+        pub family: String,
+        pub first_step: u64,
+        pub step: u64,
+        pub steps: u64,
+        /// (step, value) per loss term, by name.
+        pub losses: BTreeMap<String, Vec<[f64; 2]>>,
+        /// (step, figures as JSON) of each validation.
+        pub validation: Vec<(u64, serde_json::Value)>,
+        pub samples_per_s: f64,
+        pub data_wait: f64,
+        pub last_checkpoint: Option<u64>,
+        pub started: Option<Instant>,
+    }
+
+    impl Live {
+        /// Seconds to the end at the rate so far.
+        pub fn eta_s(&self) -> Option<f64> {
+            let done = self.step.checked_sub(self.first_step)?;
+            let elapsed = self.started?.elapsed().as_secs_f64();
+            (done > 0).then(|| elapsed / done as f64 * (self.steps - self.step) as f64)
+        }
+
+        fn record<M: serde::Serialize, L: serde::Serialize>(&mut self, event: Event<M, L>) {
+            match event {
+                Event::Started {
+                    family,
+                    first_step,
+                    steps,
+                    ..
+                } => {
+                    self.family = family;
+                    self.first_step = first_step;
+                    self.step = first_step;
+                    self.steps = steps;
+                    self.started = Some(Instant::now());
+                }
+                Event::Step {
+                    step,
+                    loss,
+                    samples_per_s,
+                    data_wait,
+                } => {
+                    self.step = step;
+                    self.samples_per_s = samples_per_s;
+                    self.data_wait = data_wait;
+                    // Each stage has its own terms; their names come from the serialised struct.
+                    if let Ok(serde_json::Value::Object(terms)) = serde_json::to_value(&loss) {
+                        for (name, value) in terms {
+                            if let Some(v) = value.as_f64() {
+                                self.losses.entry(name).or_default().push([step as f64, v]);
+                            }
+                        }
+                    }
+                }
+                Event::Validated { step, metrics } => {
+                    let figures = serde_json::to_value(&metrics).unwrap_or_default();
+                    self.validation.push((step, figures));
+                }
+                Event::Checkpointed { step } => self.last_checkpoint = Some(step),
+            }
+        }
+    }
+
+    /// A run in the background.
+    pub struct Running {
+        pub job: Job<Result<String, String>>,
+        pub live: Arc<Mutex<Live>>,
+        stop: Arc<AtomicBool>,
+        pub out: PathBuf,
+        pub family_file: Option<PathBuf>,
+    }
+
+    #[derive(Default)]
+    pub struct TrainState {
+        pub settings: Settings,
+        pub running: Option<Running>,
+        /// The last run's figures, kept after it ends.
+        pub last: Option<Live>,
+        /// How the last run ended.
+        pub outcome: Option<Result<String, String>>,
+    }
+
+    impl TrainState {
+        pub fn is_running(&self) -> bool {
+            self.running.as_ref().is_some_and(|r| !r.job.is_finished())
+        }
+
+        /// Asks the run to stop after its current step; it writes a checkpoint first.
+        pub fn stop(&self) {
+            if let Some(r) = &self.running {
+                r.stop.store(true, Ordering::Relaxed);
+            }
+        }
+
+        pub fn live(&self) -> Option<Live> {
+            match &self.running {
+                Some(r) => Some(r.live.lock().unwrap_or_else(|e| e.into_inner()).clone()),
+                None => self.last.clone(),
+            }
+        }
+
+        /// Collects a finished run's outcome.
+        fn poll(&mut self) -> Option<Result<String, String>> {
+            let running = self.running.as_mut()?;
+            let outcome = running.job.take()?.and_then(|r| r);
+            let running = self.running.take().expect("checked above");
+            self.last = Some(
+                running
+                    .live
+                    .lock()
+                    .unwrap_or_else(|e| e.into_inner())
+                    .clone(),
+            );
+            let outcome = outcome.and_then(|message| {
+                // A complete run's model goes next to the family file, for Detect.
+                match &running.family_file {
+                    Some(file) if running.out.join("model.bin").exists() => {
+                        let target = super::attached_model(file);
+                        std::fs::copy(running.out.join("model.bin"), &target)
+                            .map(|_| format!("{message}; model attached as {}", target.display()))
+                            .map_err(|e| format!("{}: {e}", target.display()))
+                    }
+                    _ => Ok(message),
+                }
+            });
+            self.outcome = Some(outcome.clone());
+            Some(outcome)
+        }
+    }
+
+    /// The run folder of a family and stage: beside the user's families folder.
+    pub fn run_folder(studio: &Studio, family: &str, stage: StageChoice) -> PathBuf {
+        let name = match stage {
+            StageChoice::Keypoints => format!("{family}-keypoints"),
+            StageChoice::Roi => format!("{family}-roi"),
+        };
+        match studio.files.user_folder() {
+            Some(dir) => dir.with_file_name("runs").join(name),
+            None => PathBuf::from("runs").join(name),
+        }
+    }
+
+    /// Why the design cannot be trained yet, in the designer's words.
+    pub fn blocker(studio: &Studio) -> Option<String> {
+        let Some(design) = &studio.design else {
+            return Some("Open or start a design in the Families panel first.".into());
+        };
+        if let Err(e) = design.validation() {
+            return Some(format!(
+                "The design has {} problem(s) to fix in the Designer first (the first: {}).",
+                e.problems.len(),
+                e.problems
+                    .first()
+                    .map(|p| format!("{}: {}", p.path, p.message))
+                    .unwrap_or_default()
+            ));
+        }
+        if design.is_dirty() || design.path.is_none() {
+            return Some(
+                "Save the design first (Save, Ctrl+S): a trained model belongs to a saved family \
+                 file."
+                    .into(),
+            );
+        }
+        None
+    }
+
+    fn start(studio: &mut Studio, resume: bool) {
+        let Some(design) = &studio.design else { return };
+        let Ok(family) = design.validation().clone() else {
+            return;
+        };
+        let family_file = design.path.clone();
+        let settings = studio.train.settings.clone();
+        let out = run_folder(studio, family.name(), settings.stage);
+        let config = TrainConfig {
+            steps: settings.steps,
+            batch: settings.batch,
+            width: settings.width,
+            learning_rate: settings.learning_rate,
+            // Small runs still checkpoint and validate a few times.
+            checkpoint_every: (settings.steps / 10).clamp(1, 250),
+            validate_every: (settings.steps / 10).clamp(1, 500),
+            validation_patches: if settings.steps < 100 { 8 } else { 200 },
+            ..TrainConfig::default()
+        };
+        let live = Arc::new(Mutex::new(Live::default()));
+        let stop = Arc::new(AtomicBool::new(false));
+        let job = {
+            let (live, stop, out) = (live.clone(), stop.clone(), out.clone());
+            Job::start(move |reporter| {
+                run(
+                    &family,
+                    settings.stage,
+                    &config,
+                    &out,
+                    resume,
+                    &stop,
+                    &live,
+                    reporter,
+                )
+            })
+        };
+        studio.train.outcome = None;
+        studio.train.running = Some(Running {
+            job,
+            live,
+            stop,
+            out: out.clone(),
+            family_file: (settings.stage == StageChoice::Keypoints)
+                .then_some(family_file)
+                .flatten(),
+        });
+        studio.info(format!("training into {}", out.display()));
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn run(
+        family: &Family,
+        stage: StageChoice,
+        config: &TrainConfig,
+        out: &std::path::Path,
+        resume: bool,
+        stop: &AtomicBool,
+        live: &Mutex<Live>,
+        reporter: &super::super::job::Reporter,
+    ) -> Result<String, String> {
+        fn go<S: TrainStage>(
+            stage: S,
+            config: &TrainConfig,
+            out: &std::path::Path,
+            resume: bool,
+            stop: &AtomicBool,
+            live: &Mutex<Live>,
+            reporter: &super::super::job::Reporter,
+        ) -> Result<String, String> {
+            let report = train::train(Arc::new(stage), config, out, resume, stop, &mut |e| {
+                let mut l = live.lock().unwrap_or_else(|e| e.into_inner());
+                l.record(e);
+                reporter.progress(
+                    l.step as f32 / l.steps.max(1) as f32,
+                    format!("step {}/{}", l.step, l.steps),
+                );
+            })
+            .map_err(|e| e.to_string())?;
+            Ok(if report.steps < config.steps {
+                format!(
+                    "stopped at step {} (checkpoint kept: Resume continues)",
+                    report.steps
+                )
+            } else {
+                format!("trained {} steps in {:.0} s", report.steps, report.wall_s)
+            })
+        }
+        match stage {
+            StageChoice::Keypoints => go(
+                KeypointStage::new(family, config.width),
+                config,
+                out,
+                resume,
+                stop,
+                live,
+                reporter,
+            ),
+            StageChoice::Roi => go(
+                RoiStage::for_families(vec![family.clone()], config.width),
+                config,
+                out,
+                resume,
+                stop,
+                live,
+                reporter,
+            ),
+        }
+    }
+
+    pub fn show(studio: &mut Studio, ui: &mut egui::Ui) {
+        if let Some(outcome) = studio.train.poll() {
+            match outcome {
+                Ok(m) => studio.info(m),
+                Err(e) => studio.error(format!("training stopped: {e}")),
+            }
+        }
+        let blocker = blocker(studio);
+        let running = studio.train.is_running();
+        if let Some(why) = &blocker {
+            ui.label(why.as_str());
+        }
+        let family_name = studio
+            .design
+            .as_ref()
+            .map(|d| d.spec().name.clone())
+            .unwrap_or_default();
+        let s = &mut studio.train.settings;
+        ui.add_enabled_ui(!running, |ui| {
+            egui::Grid::new("train-settings")
+                .num_columns(2)
+                .show(ui, |ui| {
+                    ui.label("Stage");
+                    ui.horizontal(|ui| {
+                        ui.radio_value(&mut s.stage, StageChoice::Keypoints, "keypoints (stage 2)");
+                        ui.radio_value(
+                            &mut s.stage,
+                            StageChoice::Roi,
+                            "ROI (stage 1, this family)",
+                        );
+                    });
+                    ui.end_row();
+                    let label = ui.label("Steps");
+                    ui.add(egui::DragValue::new(&mut s.steps).range(1..=10_000_000))
+                        .labelled_by(label.id);
+                    ui.end_row();
+                    let label = ui.label("Batch");
+                    ui.add(egui::DragValue::new(&mut s.batch).range(1..=256))
+                        .labelled_by(label.id);
+                    ui.end_row();
+                    let label = ui.label("Width");
+                    ui.add(egui::DragValue::new(&mut s.width).range(8..=256))
+                        .labelled_by(label.id);
+                    ui.end_row();
+                    let label = ui.label("Learning rate");
+                    ui.add(
+                        egui::DragValue::new(&mut s.learning_rate)
+                            .range(1e-6..=1.0)
+                            .speed(1e-4),
+                    )
+                    .labelled_by(label.id);
+                    ui.end_row();
+                });
+            // The shipped stage-2 models: 10 500 steps of 16 at width 32 in about 51 minutes of
+            // this machine's two cores (BENCHMARKS.md), ≈ 0.29 s per step.
+            if s.stage == StageChoice::Keypoints {
+                let minutes = s.steps as f64
+                    * 0.29
+                    * (s.batch as f64 / 16.0)
+                    * (s.width as f64 / 32.0).powi(2)
+                    / 60.0;
+                ui.weak(format!(
+                    "about {minutes:.0} min on two CPU cores (the shipped models' rate)"
+                ));
+            }
+        });
+        let can_start = blocker.is_none() && !running;
+        let out = (!family_name.is_empty())
+            .then(|| run_folder(studio, &family_name, studio.train.settings.stage));
+        let resumable = out
+            .as_ref()
+            .is_some_and(|o| o.join("checkpoint.bin").exists());
+        ui.horizontal(|ui| {
+            if ui
+                .add_enabled(can_start, egui::Button::new("Start"))
+                .clicked()
+            {
+                start(studio, false);
+            }
+            if ui
+                .add_enabled(can_start && resumable, egui::Button::new("Resume"))
+                .on_hover_text("continue from the run folder's last checkpoint")
+                .clicked()
+            {
+                start(studio, true);
+            }
+            if ui
+                .add_enabled(running, egui::Button::new("Stop"))
+                .on_hover_text("stop after the current step; a checkpoint is written first")
+                .clicked()
+            {
+                studio.train.stop();
+            }
+            if let Some(o) = &out {
+                ui.weak(format!("run folder: {}", o.display()));
+            }
+        });
+        if running {
+            ui.ctx()
+                .request_repaint_after(std::time::Duration::from_millis(200));
+        }
+        let Some(live) = studio.train.live() else {
+            return;
+        };
+        ui.label(format!(
+            "step {}/{}, {:.1} samples/s, data wait {:.0} %{}{}",
+            live.step,
+            live.steps,
+            live.samples_per_s,
+            100.0 * live.data_wait,
+            live.eta_s()
+                .filter(|_| running)
+                .map(|s| format!(", ETA {:.0} min", s / 60.0))
+                .unwrap_or_default(),
+            live.last_checkpoint
+                .map(|s| format!(", checkpoint at step {s}"))
+                .unwrap_or_default(),
+        ));
+        if let Some((step, figures)) = live.validation.last() {
+            ui.label(format!(
+                "validation at step {step}: {}",
+                figures_text(figures)
+            ));
+        }
+        Plot::new("losses")
+            .legend(Legend::default())
+            .height(260.0)
+            .x_axis_label("step")
+            .show(ui, |plot| {
+                for (name, points) in &live.losses {
+                    plot.line(Line::new(name.as_str(), PlotPoints::from(points.clone())));
+                }
+            });
+    }
+
+    fn figures_text(figures: &serde_json::Value) -> String {
+        match figures {
+            serde_json::Value::Object(map) => map
+                .iter()
+                .filter_map(|(k, v)| v.as_f64().map(|v| format!("{k} {v:.3}")))
+                .collect::<Vec<_>>()
+                .join(", "),
+            other => other.to_string(),
+        }
+    }
+}

@@ -1,0 +1,61 @@
+#!/usr/bin/env bash
+# The full detector side by side with AprilTag 3 and OpenCV ArUco on whole images (issue 12):
+#  1. the evaluation harness (paper protocol: Normal, Difficult, noise and motion-blur sweeps) for
+#     AprilTag 36h11 and ArUco 6x6_250 — Tagsmith's stage 1 + stage 2 (`detect-set --full`);
+#  2. false positives on 200 marker-free scenes (every family with shipped weights at once);
+#  3. speed on 640×480 and 1280×960 images with one marker, stage split included.
+# One run, the same images for every detector. Needs bench/.venv (bench/setup.sh) and a release
+# build:   cargo build --release && bench/detector.sh /tmp/detector
+set -euo pipefail
+cd "$(dirname "$0")/.."
+out=${1:?usage: bench/detector.sh OUT_DIR}
+T=target/release/tagsmith
+PY=bench/.venv/bin/python
+mkdir -p "$out"
+rows='^\| (normal|difficult|noise|motion|all)'
+
+for family in apriltag-36h11 aruco-6x6_250; do
+  set_dir="$out/$family"
+  [ -f "$set_dir/set.json" ] || $T eval generate "$family" -o "$set_dir" >/dev/null
+  detectors="opencv"
+  [ "$family" = apriltag-36h11 ] && detectors="apriltag opencv"
+  for d in $detectors; do
+    $PY bench/baselines.py "$set_dir" --detector $d -o "$out/$family-$d.json" >/dev/null
+  done
+  $T detect-set "$set_dir" --full -o "$out/$family-tagsmith.json"
+  for f in "$out/$family"-*.json; do
+    name=$(basename "$f" .json)
+    echo "== $name"
+    $T eval score "$set_dir" "$f" -o "$out/report-$name" | grep -E "$rows" || true
+  done
+done
+
+echo "== false positives: 200 marker-free 640×480 scenes"
+empty="$out/empty"
+[ -d "$empty" ] || $T synth apriltag-36h11 --mode camera --width 640 --height 480 --markers 0 \
+  -n 200 --seed 77 -o "$empty" >/dev/null
+$T detect "$empty"/*.png --json "$out/empty-tagsmith.json" | tail -n +1 | grep -v ": 0 markers" || true
+$PY - "$out/empty-tagsmith.json" <<'PY'
+import json, sys
+f = json.load(open(sys.argv[1]))
+print(f"Tagsmith (all shipped families): {sum(len(i['detections']) for i in f['images'])} detections in {len(f['images'])} images")
+PY
+$PY bench/images.py "$empty" --detector apriltag --family apriltag-36h11 -o "$out/empty-apriltag.json"
+$PY bench/images.py "$empty" --detector opencv --family aruco-6x6_250 -o "$out/empty-opencv.json"
+
+for size in 640x480 1280x960; do
+  w=${size%x*}; h=${size#*x}
+  speed="$out/speed-$size"
+  [ -d "$speed" ] || $T synth apriltag-36h11 --mode camera --width $w --height $h --markers 1 \
+    -n 40 --seed 5 -o "$speed" >/dev/null
+  echo "== speed $size, one marker, 40 images (median)"
+  $T detect "$speed"/*.png --family apriltag-36h11 --json "$out/speed-$size-tagsmith.json" \
+    | $PY -c '
+import re, statistics, sys
+rows = [re.search(r"markers? .*in (\d+) ms \(stage 1 (\d+) ms, (\d+) ROIs?; stage 2 (\d+) ms\)", l) for l in sys.stdin]
+rows = [tuple(map(int, r.groups())) for r in rows if r]
+print("Tagsmith: median %d ms (stage 1 %d ms, stage 2 %d ms), median %d ROIs" % tuple(
+    statistics.median(r[i] for r in rows) for i in (0, 1, 3, 2)))'
+  $PY bench/images.py "$speed" --detector apriltag --family apriltag-36h11 -o "$out/speed-$size-apriltag.json"
+  $PY bench/images.py "$speed" --detector opencv --family apriltag-36h11 -o "$out/speed-$size-opencv.json"
+done
