@@ -96,6 +96,51 @@ mod desktop {
         detector: Option<(Vec<String>, Detector)>,
         stale: bool,
         revision: u64,
+        pub scene: SceneSettings,
+        /// The test scenes of the last render, one per compared family.
+        pub scenes: Vec<TestScene>,
+    }
+
+    /// The synthetic test scene's conditions, the same for both families compared.
+    #[derive(Debug, Clone, PartialEq)]
+    pub struct SceneSettings {
+        pub first: String,
+        /// Empty: no second family.
+        pub second: String,
+        pub distance_m: f64,
+        pub angle_deg: f64,
+        pub noise: f32,
+        pub blur: f32,
+        /// Gray level of the marker's white (lighting).
+        pub white: f32,
+        pub seed: u64,
+    }
+
+    impl Default for SceneSettings {
+        fn default() -> Self {
+            let mut shipped = shipped_families();
+            Self {
+                first: shipped.next().unwrap_or_default().to_string(),
+                second: shipped.next().unwrap_or_default().to_string(),
+                distance_m: 0.5,
+                angle_deg: 30.0,
+                noise: 4.0,
+                blur: 0.6,
+                white: 220.0,
+                seed: 1,
+            }
+        }
+    }
+
+    /// One family's test scene: the image, its truth and how the detector did on it.
+    pub struct TestScene {
+        pub family: String,
+        pub image: GrayImage,
+        pub truth: tagsmith::synth::MarkerTruth,
+        pub found: Option<Found>,
+        /// Corner RMS (px), position (mm) and rotation (°) errors of the found marker.
+        pub errors: Option<(f64, f64, f64)>,
+        pub revision: u64,
     }
 
     impl Default for DetectState {
@@ -109,6 +154,8 @@ mod desktop {
                 detector: None,
                 stale: false,
                 revision: 0,
+                scene: SceneSettings::default(),
+                scenes: Vec::new(),
             }
         }
     }
@@ -194,6 +241,90 @@ mod desktop {
             Ok(())
         }
 
+        /// Renders the test scene for each compared family and detects on it with the same
+        /// detector (the families ticked above), with the scene's own camera.
+        pub fn render_scenes(&mut self) -> Result<(), String> {
+            use tagsmith::synth::{augment::AugmentRanges, synthesize, Mode, SynthConfig};
+            let settings = self.scene.clone();
+            let names: Vec<String> = [settings.first.clone(), settings.second.clone()]
+                .into_iter()
+                .filter(|n| !n.is_empty())
+                .collect();
+            // The detector is built for the ticked families; the compared ones must be among them.
+            for name in &names {
+                if let Some(entry) = self.families.iter_mut().find(|(f, _)| f == name) {
+                    if !entry.1 {
+                        entry.1 = true;
+                        self.stale = true;
+                    }
+                }
+            }
+            self.stale = true;
+            let had_image = self.image.is_some();
+            if !had_image {
+                // refresh() builds the detector only with an image to run on.
+                self.image = Some(LoadedImage {
+                    name: String::new(),
+                    gray: GrayImage::new(16, 16, 128),
+                    revision: 0,
+                });
+            }
+            let built = self.refresh();
+            if !had_image {
+                self.image = None;
+                self.result = None;
+            }
+            built?;
+            let (_, detector) = self.detector.as_mut().ok_or("no detector")?;
+            self.scenes.clear();
+            for name in names {
+                let family = match tagsmith::builtin::get(&name) {
+                    Some(Ok(f)) => f,
+                    _ => match &self.design {
+                        Some((f, _, _)) if f.name() == name => f.clone(),
+                        _ => return Err(format!("{name}: no such family")),
+                    },
+                };
+                let mut config = SynthConfig::new(Mode::Camera);
+                config.width = 640;
+                config.height = 480;
+                config.fov_deg = 70.0;
+                config.markers = [1, 1];
+                let side = family.spec().print.marker_side_mm / 1000.0;
+                config.side_m = [side, side];
+                config.distance_m = [settings.distance_m; 2];
+                config.view_angle_deg = [settings.angle_deg; 2];
+                let mut augment = AugmentRanges::none();
+                augment.marker_black = [25.0, 25.0];
+                augment.marker_white = [settings.white; 2];
+                augment.noise_sigma = [settings.noise; 2];
+                augment.blur_sigma = [settings.blur; 2];
+                config.augment = augment;
+                let sample =
+                    synthesize(&family, &config, settings.seed).map_err(|e| e.to_string())?;
+                let Some(truth) = sample.truth.markers.first().cloned() else {
+                    continue;
+                };
+                detector.camera = sample.truth.camera;
+                let (found, _) = Detector::detect(detector, &sample.image);
+                detector.camera = None;
+                let found = found
+                    .into_iter()
+                    .find(|f| f.family == family.name() && f.marker.id == truth.id);
+                let errors = found.as_ref().map(|f| scene_errors(f, &truth));
+                self.revision += 1;
+                self.scenes.push(TestScene {
+                    family: family.name().to_string(),
+                    image: sample.image,
+                    truth,
+                    found,
+                    errors,
+                    revision: self.revision,
+                });
+            }
+            Ok(())
+        }
+
         /// The detections in the CLI's `--json` format.
         pub fn detections_file(&self) -> Option<DetectionsFile> {
             let (image, result) = (self.image.as_ref()?, self.result.as_ref()?);
@@ -218,6 +349,24 @@ mod desktop {
             self.result = None;
             self.stale = true;
         }
+    }
+
+    fn scene_errors(f: &Found, truth: &tagsmith::synth::MarkerTruth) -> (f64, f64, f64) {
+        let corners = f
+            .marker
+            .corners
+            .iter()
+            .zip(&truth.roi)
+            .map(|(a, b)| (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2))
+            .sum::<f64>()
+            / 4.0;
+        let (mut position, mut rotation) = (f64::NAN, f64::NAN);
+        if let (Some(p), Some(t)) = (&f.marker.pose, &truth.pose) {
+            let want = tagsmith::geometry::Pose::from(&t.pose);
+            position = 1000.0 * (p.pose.translation - want.translation).norm();
+            rotation = p.pose.rotation_error_deg(&want);
+        }
+        (corners.sqrt(), position, rotation)
     }
 
     /// An image file opened or dropped: decoded (with the CLI's size limits) and detected on.
@@ -281,6 +430,9 @@ mod desktop {
         if let Err(e) = studio.detect.refresh() {
             studio.error(e);
         }
+        egui::CollapsingHeader::new("Test scene")
+            .default_open(false)
+            .show(ui, |ui| test_scene(studio, ui, ctx));
         let state = &studio.detect;
         let (Some(image), Some(result)) = (&state.image, &state.result) else {
             ui.label("Open an image, drop one on the window, or pick a sample.");
@@ -321,6 +473,82 @@ mod desktop {
         if save_png {
             save_annotated(studio);
         }
+    }
+
+    /// A synthetic scene per compared family under the same conditions, detected, with the errors
+    /// against its truth: where a user sees which design holds up in their conditions.
+    fn test_scene(studio: &mut Studio, ui: &mut egui::Ui, ctx: &egui::Context) {
+        let state = &mut studio.detect;
+        let mut names: Vec<String> = state.families.iter().map(|(f, _)| f.clone()).collect();
+        if let Some((f, _, _)) = &state.design {
+            names.push(f.name().to_string());
+        }
+        let before = state.scene.clone();
+        let s = &mut state.scene;
+        ui.horizontal(|ui| {
+            for (label, value, optional) in [
+                ("first family", &mut s.first, false),
+                ("second family", &mut s.second, true),
+            ] {
+                egui::ComboBox::from_label(label)
+                    .selected_text(if value.is_empty() {
+                        "none".to_string()
+                    } else {
+                        value.clone()
+                    })
+                    .show_ui(ui, |ui| {
+                        if optional {
+                            ui.selectable_value(value, String::new(), "none");
+                        }
+                        for n in &names {
+                            ui.selectable_value(value, n.clone(), n.as_str());
+                        }
+                    });
+            }
+        });
+        ui.horizontal_wrapped(|ui| {
+            ui.add(egui::Slider::new(&mut s.distance_m, 0.15..=2.0).text("distance m"));
+            ui.add(egui::Slider::new(&mut s.angle_deg, 0.0..=75.0).text("angle °"));
+            ui.add(egui::Slider::new(&mut s.noise, 0.0..=120.0).text("noise σ"));
+            ui.add(egui::Slider::new(&mut s.blur, 0.0..=4.0).text("blur σ px"));
+            ui.add(egui::Slider::new(&mut s.white, 60.0..=255.0).text("white level"));
+            if ui.button("New pose").clicked() {
+                s.seed += 1;
+            }
+        });
+        let changed = *s != before;
+        if changed || (state.scenes.is_empty() && ui.button("Render test scene").clicked()) {
+            if let Err(e) = state.render_scenes() {
+                studio.error(e);
+                return;
+            }
+        }
+        let state = &studio.detect;
+        ui.horizontal(|ui| {
+            for scene in &state.scenes {
+                ui.vertical(|ui| {
+                    ui.strong(scene.family.as_str());
+                    match (&scene.found, scene.errors) {
+                        (Some(f), Some((c, p, r))) => ui.label(format!(
+                            "found #{}: corners {c:.2} px RMS, position {p:.1} mm, rotation {r:.2}°",
+                            f.marker.id
+                        )),
+                        _ => ui.label(format!("#{} not found", scene.truth.id)),
+                    };
+                    let key = format!("test-scene-{}", scene.family);
+                    let tex = studio.textures.get_or_make(ctx, &key, scene.revision, || {
+                        Ok(gray_image(&scene.image))
+                    });
+                    if let Ok(tex) = tex {
+                        let size = Vec2::new(scene.image.width as f32, scene.image.height as f32);
+                        let scale = 0.6;
+                        let response = ui.image((tex.id(), size * scale));
+                        let found: Vec<Found> = scene.found.iter().cloned().collect();
+                        draw_overlays(ui, response.rect, scale, &found);
+                    }
+                });
+            }
+        });
     }
 
     fn table(ui: &mut egui::Ui, found: &[Found]) {

@@ -134,40 +134,46 @@ impl Detector {
                 guessed.as_ref()
             }
         };
-        let mut found: Vec<Found> = Vec::new();
-        for proposal in proposals {
-            let mut best: Option<Found> = None;
-            for reader in &self.readers {
-                timings.reads += 1;
-                let read = reader.stage2.detect(
+        // The first stage-2 pass of each family over every proposal in one batch; only the ROIs
+        // it decodes get the second pass, the alignment and the pose.
+        let rois: Vec<[[f64; 2]; 4]> = proposals.iter().map(|p| p.corners).collect();
+        let mut best: Vec<Option<Found>> = vec![None; proposals.len()];
+        for reader in &self.readers {
+            timings.reads += rois.len();
+            let firsts = reader.stage2.first_passes(image, &rois);
+            for (i, first) in firsts.into_iter().enumerate() {
+                let Some(first) = first else { continue };
+                let Some(marker) = reader.stage2.continue_from(
                     image,
-                    &proposal.corners,
+                    first,
                     &self.options.read,
                     camera.map(|c| (c, reader.side_m)),
-                );
-                let Some(marker) = read else { continue };
+                ) else {
+                    continue;
+                };
                 // Two families reading one ROI: the one whose code needed fewer corrections.
-                if best
+                if best[i]
                     .as_ref()
                     .is_none_or(|b| marker.corrected_errors < b.marker.corrected_errors)
                 {
-                    best = Some(Found {
+                    best[i] = Some(Found {
                         family: reader.family.name().into(),
                         marker,
-                        proposal,
+                        proposal: proposals[i],
                     });
                 }
             }
-            if let Some(f) = best {
-                let twice = found.iter().any(|g| {
-                    g.family == f.family
-                        && g.marker.id == f.marker.id
-                        && (inside(&g.marker.corners, centre(&f.marker.corners))
-                            || inside(&f.marker.corners, centre(&g.marker.corners)))
-                });
-                if !twice {
-                    found.push(f);
-                }
+        }
+        let mut found: Vec<Found> = Vec::new();
+        for f in best.into_iter().flatten() {
+            let twice = found.iter().any(|g| {
+                g.family == f.family
+                    && g.marker.id == f.marker.id
+                    && (inside(&g.marker.corners, centre(&f.marker.corners))
+                        || inside(&f.marker.corners, centre(&g.marker.corners)))
+            });
+            if !twice {
+                found.push(f);
             }
         }
         timings.stage2_ms = clock.ms();

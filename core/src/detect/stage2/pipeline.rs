@@ -125,19 +125,54 @@ impl Stage2 {
         options: &ReadOptions,
         camera: Option<(&Camera, f64)>,
     ) -> Option<Stage2Result> {
-        let mut roi = *roi;
-        let mut result: Option<Stage2Result> = None;
-        for pass in 0..options.iterations.max(1) {
+        let first = self.pass(image, roi)?;
+        self.continue_from(image, first, options, camera)
+    }
+
+    /// The first pass over many ROIs at once: one batch through the network, which costs less
+    /// per ROI than one at a time (the full detector's proposals).
+    pub fn first_passes(
+        &self,
+        image: &GrayImage,
+        rois: &[[[f64; 2]; 4]],
+    ) -> Vec<Option<Stage2Result>> {
+        let warped: Vec<Option<(GrayImage, Homography)>> =
+            rois.iter().map(|roi| self.warp(image, roi)).collect();
+        let patches: Vec<GrayImage> = warped.iter().flatten().map(|(p, _)| p.clone()).collect();
+        if patches.is_empty() {
+            return vec![None; rois.len()];
+        }
+        let mut raw = self.run_patches(&patches).into_iter();
+        warped
+            .iter()
+            .map(|w| {
+                let (_, to_image) = w.as_ref()?;
+                self.decode_patch(&raw.next()?, to_image)
+            })
+            .collect()
+    }
+
+    /// The passes after the first (each from the last one's keypoints), the alignment against
+    /// the rendering and the pose.
+    pub fn continue_from(
+        &self,
+        image: &GrayImage,
+        first: Stage2Result,
+        options: &ReadOptions,
+        camera: Option<(&Camera, f64)>,
+    ) -> Option<Stage2Result> {
+        let mut roi = first.corners;
+        let mut result = first;
+        for pass in 1..options.iterations.max(1) {
             match self.pass(image, &roi) {
                 Some(mut r) => {
                     r.iterations = pass + 1;
                     roi = r.corners;
-                    result = Some(r);
+                    result = r;
                 }
                 None => break,
             }
         }
-        let mut result = result?;
         let lens = camera.map_or(Lens::Pixels, |(c, _)| Lens::Camera(c));
         let kps = self.family.keypoints();
         let canonical: Vec<[f64; 2]> = result.keypoints.iter().map(|k| kps[k.index].pos).collect();
