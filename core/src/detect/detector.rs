@@ -118,6 +118,12 @@ impl Detector {
 
     /// Every marker in `image`, best ROI first, and the time each stage took.
     pub fn detect(&self, image: &GrayImage) -> (Vec<Found>, Timings) {
+        self.detect_with(image, self.camera.as_ref())
+    }
+
+    /// [`Detector::detect`] with this image's camera (several images of different cameras or
+    /// sizes on one detector, in parallel).
+    pub fn detect_with(&self, image: &GrayImage, camera: Option<&Camera>) -> (Vec<Found>, Timings) {
         let clock = Stopwatch::start();
         let proposals = self.stage1.propose(image, &self.options.propose);
         let mut timings = Timings {
@@ -127,7 +133,7 @@ impl Detector {
         };
         let clock = Stopwatch::start();
         let guessed;
-        let camera = match &self.camera {
+        let camera = match camera {
             Some(c) => Some(c),
             None => {
                 guessed = Camera::from_diagonal_fov(image.width, image.height, 70.0).ok();
@@ -227,5 +233,39 @@ impl BenchDetector for Detector {
             .iter()
             .map(Found::detection)
             .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_family_without_weights_is_named_with_the_command_that_trains_them() {
+        let family = crate::builtin::get("aruco-4x4_50").unwrap().unwrap();
+        let e = Detector::shipped(vec![family]).err().unwrap().to_string();
+        assert!(e.contains("aruco-4x4_50"), "{e}");
+        assert!(
+            e.contains("tagsmith train aruco-4x4_50 --stage keypoints"),
+            "{e}"
+        );
+        let stage1 = Stage1::from_bytes(SHIPPED_STAGE1, "shipped").unwrap();
+        assert!(matches!(
+            Detector::new(stage1, Vec::new()),
+            Err(DetectorError::NoFamilies)
+        ));
+    }
+
+    #[test]
+    fn a_marker_free_image_gives_no_detection() {
+        let families = ["apriltag-36h11", "aruco-6x6_250"]
+            .iter()
+            .map(|n| crate::builtin::get(n).unwrap().unwrap())
+            .collect();
+        let detector = Detector::shipped(families).unwrap();
+        let flat = GrayImage::new(320, 240, 128);
+        let (found, timings) = detector.detect(&flat);
+        assert!(found.is_empty());
+        assert_eq!(timings.reads, 2 * timings.proposals);
     }
 }

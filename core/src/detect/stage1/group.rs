@@ -25,7 +25,8 @@ pub struct Corner {
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Proposal {
     pub corners: [[f64; 2]; 4],
-    /// Mean corner confidence times the mask cover of the inside.
+    /// Mean corner confidence × how well the mask marks the quad out (inside minus around) ×
+    /// how well the corners' directions point at its centre.
     pub score: f64,
 }
 
@@ -172,9 +173,9 @@ fn crossing(a: [f64; 2], b: [f64; 2], c: [f64; 2], d: [f64; 2]) -> Option<(f64, 
     Some((cross(ac, s) / den, cross(ac, r) / den))
 }
 
-/// The mean of `mask` at nine points spread over the quad's inside.
-fn mask_cover(q: &[[f64; 2]; 4], mask: &dyn Fn([f64; 2]) -> f64) -> f64 {
-    let mut sum = 0.0;
+/// The mean and the lowest of `mask` at nine points spread over the quad's inside.
+fn mask_inside(q: &[[f64; 2]; 4], mask: &dyn Fn([f64; 2]) -> f64) -> (f64, f64) {
+    let (mut sum, mut lowest) = (0.0, f64::MAX);
     for v in [0.25, 0.5, 0.75] {
         for u in [0.25, 0.5, 0.75] {
             let top = [
@@ -185,13 +186,56 @@ fn mask_cover(q: &[[f64; 2]; 4], mask: &dyn Fn([f64; 2]) -> f64) -> f64 {
                 q[3][0] + u * (q[2][0] - q[3][0]),
                 q[3][1] + u * (q[2][1] - q[3][1]),
             ];
-            sum += mask([
+            let m = mask([
                 top[0] + v * (bottom[0] - top[0]),
                 top[1] + v * (bottom[1] - top[1]),
             ]);
+            sum += m;
+            lowest = lowest.min(m);
         }
     }
-    sum / 9.0
+    (sum / 9.0, lowest)
+}
+
+/// The mean of `mask` around the quad: its corners and edge midpoints pushed out from the centre
+/// by half again (past a one-cell white border, which the mask counts as marker).
+fn mask_outside(q: &[[f64; 2]; 4], mask: &dyn Fn([f64; 2]) -> f64) -> f64 {
+    let c = quad_centre(q);
+    let out = |p: [f64; 2]| mask([c[0] + 1.5 * (p[0] - c[0]), c[1] + 1.5 * (p[1] - c[1])]);
+    (0..4)
+        .map(|i| {
+            let (a, b) = (q[i], q[(i + 1) % 4]);
+            out(a) + out([(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0])
+        })
+        .sum::<f64>()
+        / 8.0
+}
+
+/// How well the mask marks out the quad — inside minus around, 0 to 1 — or `None` when its
+/// inside is not marker (a quad spanning two markers and the gap between them).
+fn mask_fit(q: &[[f64; 2]; 4], mask: &dyn Fn([f64; 2]) -> f64, threshold: f64) -> Option<f64> {
+    let (mean, lowest) = mask_inside(q, mask);
+    if mean < threshold || lowest < threshold / 2.0 {
+        return None;
+    }
+    let contrast = mean - mask_outside(q, mask);
+    (contrast > 0.2).then_some(contrast)
+}
+
+/// The mean cosine between each corner's direction and the way to where the quad's diagonals
+/// cross: 1 when every corner points at the centre of this quad rather than another's.
+fn alignment(q: &[[f64; 2]; 4], directions: [[f64; 2]; 4]) -> f64 {
+    let Some(x) = super::targets::diagonal_crossing(q) else {
+        return 0.0;
+    };
+    (0..4)
+        .map(|i| {
+            let to = sub(x, q[i]);
+            let len = to[0].hypot(to[1]).max(1e-9);
+            dot(directions[i], [to[0] / len, to[1] / len])
+        })
+        .sum::<f64>()
+        / 4.0
 }
 
 /// The marker ROIs that `corners` make, best first, each corner in at most one.
@@ -235,16 +279,22 @@ pub fn group(
             if !sides_balanced(&q) {
                 continue;
             }
-            let cover = mask_cover(&q, mask);
-            if cover < options.mask {
+            let Some(fit) = mask_fit(&q, mask, options.mask) else {
                 continue;
-            }
+            };
+            let direction_of = |p: [f64; 2]| {
+                [a, b, c, d]
+                    .iter()
+                    .find(|&&i| corners[i].at == p)
+                    .map_or([0.0, 0.0], |&i| corners[i].direction)
+            };
+            let aligned = alignment(&q, q.map(direction_of));
             let confidence = [a, b, c, d].iter().map(|&i| corners[i].score).sum::<f64>() / 4.0;
             candidates.push((
                 [a, b, c, d],
                 Proposal {
                     corners: q,
-                    score: confidence * cover,
+                    score: confidence * fit * aligned.max(0.0),
                 },
             ));
         }
@@ -276,16 +326,15 @@ pub fn group(
             if !sides_balanced(&q) {
                 continue;
             }
-            let cover = mask_cover(&q, mask);
-            if cover < options.mask {
+            let Some(fit) = mask_fit(&q, mask, options.mask) else {
                 continue;
-            }
+            };
             let confidence = (corners[a].score + corners[b].score + corner.score) / 4.0;
             candidates.push((
                 [a, b, c, c],
                 Proposal {
                     corners: q,
-                    score: confidence * cover,
+                    score: confidence * fit,
                 },
             ));
         }
@@ -373,6 +422,11 @@ mod tests {
         }
     }
 
+    /// A mask that is 1 on the given markers and 0 elsewhere.
+    fn mask_of(quads: Vec<[[f64; 2]; 4]>) -> impl Fn([f64; 2]) -> f64 {
+        move |p| f64::from(u8::from(quads.iter().any(|q| inside(q, p))))
+    }
+
     fn marker(corners: [[f64; 2]; 4]) -> Vec<Corner> {
         let c = crate::detect::stage1::targets::diagonal_crossing(&corners).unwrap();
         corners.iter().map(|&p| corner(p, c, 0.9)).collect()
@@ -393,8 +447,8 @@ mod tests {
         // Corners pointing nowhere useful.
         corners.push(corner([80.0, 20.0], [80.0, 0.0], 0.95));
         corners.push(corner([30.0, 120.0], [0.0, 120.0], 0.95));
-        let everywhere = |_: [f64; 2]| 1.0;
-        let quads = group(&corners, &everywhere, &GroupOptions::default());
+        let mask = mask_of(vec![a, b]);
+        let quads = group(&corners, &mask, &GroupOptions::default());
         assert_eq!(quads.len(), 2, "{quads:?}");
         for q in &quads {
             assert!(signed_area(&q.corners) > 0.0);
@@ -410,8 +464,8 @@ mod tests {
         let q = [[10.0, 10.0], [50.0, 12.0], [52.0, 50.0], [8.0, 48.0]];
         let mut corners = marker(q);
         corners.remove(3);
-        let everywhere = |_: [f64; 2]| 1.0;
-        let quads = group(&corners, &everywhere, &GroupOptions::default());
+        let mask = mask_of(vec![q]);
+        let quads = group(&corners, &mask, &GroupOptions::default());
         assert_eq!(quads.len(), 1, "{quads:?}");
         let p = quads[0];
         assert!(signed_area(&p.corners) > 0.0);
@@ -419,6 +473,22 @@ mod tests {
         assert!(p.corners.contains(&[12.0, 48.0]), "{p:?}");
         // A complete marker outscores a completed one.
         assert!(p.score < 0.9 * 0.8);
+    }
+
+    #[test]
+    fn corners_of_two_touching_markers_do_not_make_one_quad_across_them() {
+        // Two markers side by side: the outer corners of the pair also make a big quad whose
+        // diagonals cross, but its corners point at their own markers' centres, not its own.
+        let a = [[10.0, 10.0], [50.0, 10.0], [50.0, 50.0], [10.0, 50.0]];
+        let b = [[54.0, 10.0], [94.0, 10.0], [94.0, 50.0], [54.0, 50.0]];
+        let mut corners = marker(a);
+        corners.extend(marker(b));
+        let mask = mask_of(vec![a, b]);
+        let quads = group(&corners, &mask, &GroupOptions::default());
+        assert_eq!(quads.len(), 2, "{quads:?}");
+        for q in quads {
+            assert!(q.corners.contains(&a[0]) == q.corners.contains(&a[2]));
+        }
     }
 
     #[test]
