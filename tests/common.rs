@@ -78,3 +78,47 @@ pub fn black_paths_after<'a>(svg: &'a str, start: &str) -> Vec<&'a str> {
         })
         .collect()
 }
+
+/// Starts `tagsmith train ARGS --steps 100000 --checkpoint-every EVERY --out r`, kills it with
+/// SIGKILL once its first checkpoint exists, then runs it again with `--steps STEPS --resume`;
+/// returns the resumed run's `report.json`.
+pub fn train_killed_then_resumed(
+    dir: &Path,
+    args: &[&str],
+    every: u64,
+    steps: u64,
+) -> serde_json::Value {
+    let with = |steps: String| -> Vec<String> {
+        args.iter()
+            .map(|s| s.to_string())
+            .chain([
+                "--steps".into(),
+                steps,
+                "--checkpoint-every".into(),
+                every.to_string(),
+                "--out".into(),
+                "r".into(),
+            ])
+            .collect()
+    };
+    let mut child = Command::new(env!("CARGO_BIN_EXE_tagsmith"))
+        .args(with("100000".into()))
+        .current_dir(dir)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let checkpoint = dir.join("r/checkpoint.bin");
+    let start = std::time::Instant::now();
+    while !checkpoint.exists() {
+        assert!(start.elapsed().as_secs() < 120, "no checkpoint written");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    child.kill().unwrap(); // SIGKILL
+    child.wait().unwrap();
+    let mut again = with(steps.to_string());
+    again.push("--resume".into());
+    let again: Vec<&str> = again.iter().map(String::as_str).collect();
+    tagsmith(dir, &again).ok();
+    serde_json::from_slice(&std::fs::read(dir.join("r/report.json")).unwrap()).unwrap()
+}

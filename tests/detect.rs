@@ -302,58 +302,25 @@ fn train_writes_a_model_that_loads_for_its_family_only() {
 #[test]
 fn training_resumes_after_kill_9() {
     let dir = tempfile::tempdir().unwrap();
-    let args = |steps: &str| -> Vec<String> {
-        [
+    let report = train_killed_then_resumed(
+        dir.path(),
+        &[
             "train",
             "apriltag-16h5",
             "--stage",
             "keypoints",
-            "--steps",
-            steps,
             "--batch",
             "2",
             "--width",
             "8",
-            "--checkpoint-every",
-            "5",
             "--validate-every",
             "1000",
             "--validation-patches",
             "2",
-            "--out",
-            "r",
-        ]
-        .iter()
-        .map(|s| s.to_string())
-        .collect()
-    };
-    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_tagsmith"))
-        .args(args("100000"))
-        .current_dir(dir.path())
-        .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::null())
-        .spawn()
-        .unwrap();
-    let checkpoint = dir.path().join("r/checkpoint.bin");
-    let start = std::time::Instant::now();
-    while !checkpoint.exists() {
-        assert!(start.elapsed().as_secs() < 120, "no checkpoint written");
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    }
-    child.kill().unwrap(); // SIGKILL
-    child.wait().unwrap();
-    let steps = "60";
-    let run = tagsmith(
-        dir.path(),
-        &[
-            args(steps).iter().map(String::as_str).collect::<Vec<_>>(),
-            vec!["--resume"],
-        ]
-        .concat(),
+        ],
+        5,
+        60,
     );
-    run.ok();
-    let report: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(dir.path().join("r/report.json")).unwrap()).unwrap();
     let from = report["resumed_from"].as_u64().expect("resumed");
     assert!(
         from >= 5 && from.is_multiple_of(5) && from <= 60,

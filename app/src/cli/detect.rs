@@ -200,19 +200,7 @@ impl DetectArgs {
             timings.stage2_ms,
         );
         if let Some(dir) = &self.annotate {
-            let overlays: Vec<Overlay> = found
-                .iter()
-                .map(|f| Overlay {
-                    roi: &f.proposal.corners,
-                    corners: Some(&f.marker.corners),
-                    keypoints: f
-                        .marker
-                        .keypoints
-                        .iter()
-                        .map(|k| (k.x, k.y, k.category))
-                        .collect(),
-                })
-                .collect();
+            let overlays: Vec<Overlay> = found.iter().map(Found::overlay).collect();
             let png = annotate_all(&image, &overlays).failure()?;
             let stem = path.file_stem().unwrap_or_default().to_string_lossy();
             write_output(&dir.join(format!("{stem}.png")), &png)?;

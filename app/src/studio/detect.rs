@@ -646,20 +646,7 @@ mod desktop {
         let (Some(image), Some(result)) = (&state.image, &state.result) else {
             return;
         };
-        let overlays: Vec<Overlay> = result
-            .found
-            .iter()
-            .map(|f| Overlay {
-                roi: &f.proposal.corners,
-                corners: Some(&f.marker.corners),
-                keypoints: f
-                    .marker
-                    .keypoints
-                    .iter()
-                    .map(|k| (k.x, k.y, k.category))
-                    .collect(),
-            })
-            .collect();
+        let overlays: Vec<Overlay> = result.found.iter().map(Found::overlay).collect();
         let name = format!("{}.annotated.png", stem(&image.name));
         let saved =
             annotate_all(&image.gray, &overlays).and_then(|png| studio.files.save_as(&name, &png));

@@ -269,16 +269,15 @@ mod desktop {
         let job = {
             let (live, stop, out) = (live.clone(), stop.clone(), out.clone());
             Job::start(move |reporter| {
-                run(
-                    &family,
-                    settings.stage,
-                    &config,
-                    &out,
+                let with = RunWith {
+                    config: &config,
+                    out: &out,
                     resume,
-                    &stop,
-                    &live,
+                    stop: &stop,
+                    live: &live,
                     reporter,
-                )
+                };
+                run(&family, settings.stage, with)
             })
         };
         studio.train.outcome = None;
@@ -294,64 +293,51 @@ mod desktop {
         studio.info(format!("training into {}", out.display()));
     }
 
-    #[allow(clippy::too_many_arguments)]
-    fn run(
-        family: &Family,
-        stage: StageChoice,
-        config: &TrainConfig,
-        out: &std::path::Path,
+    /// What a run needs besides its stage.
+    struct RunWith<'a> {
+        config: &'a TrainConfig,
+        out: &'a std::path::Path,
         resume: bool,
-        stop: &AtomicBool,
-        live: &Mutex<Live>,
-        reporter: &super::super::job::Reporter,
-    ) -> Result<String, String> {
-        fn go<S: TrainStage>(
-            stage: S,
-            config: &TrainConfig,
-            out: &std::path::Path,
-            resume: bool,
-            stop: &AtomicBool,
-            live: &Mutex<Live>,
-            reporter: &super::super::job::Reporter,
-        ) -> Result<String, String> {
-            let report = train::train(Arc::new(stage), config, out, resume, stop, &mut |e| {
-                let mut l = live.lock().unwrap_or_else(|e| e.into_inner());
+        stop: &'a AtomicBool,
+        live: &'a Mutex<Live>,
+        reporter: &'a super::super::job::Reporter,
+    }
+
+    fn run(family: &Family, stage: StageChoice, with: RunWith) -> Result<String, String> {
+        match stage {
+            StageChoice::Keypoints => go(KeypointStage::new(family, with.config.width), with),
+            StageChoice::Roi => go(
+                RoiStage::for_families(vec![family.clone()], with.config.width),
+                with,
+            ),
+        }
+    }
+
+    fn go<S: TrainStage>(stage: S, w: RunWith) -> Result<String, String> {
+        let report = train::train(
+            Arc::new(stage),
+            w.config,
+            w.out,
+            w.resume,
+            w.stop,
+            &mut |e| {
+                let mut l = w.live.lock().unwrap_or_else(|e| e.into_inner());
                 l.record(e);
-                reporter.progress(
+                w.reporter.progress(
                     l.step as f32 / l.steps.max(1) as f32,
                     format!("step {}/{}", l.step, l.steps),
                 );
-            })
-            .map_err(|e| e.to_string())?;
-            Ok(if report.steps < config.steps {
-                format!(
-                    "stopped at step {} (checkpoint kept: Resume continues)",
-                    report.steps
-                )
-            } else {
-                format!("trained {} steps in {:.0} s", report.steps, report.wall_s)
-            })
-        }
-        match stage {
-            StageChoice::Keypoints => go(
-                KeypointStage::new(family, config.width),
-                config,
-                out,
-                resume,
-                stop,
-                live,
-                reporter,
-            ),
-            StageChoice::Roi => go(
-                RoiStage::for_families(vec![family.clone()], config.width),
-                config,
-                out,
-                resume,
-                stop,
-                live,
-                reporter,
-            ),
-        }
+            },
+        )
+        .map_err(|e| e.to_string())?;
+        Ok(if report.steps < w.config.steps {
+            format!(
+                "stopped at step {} (checkpoint kept: Resume continues)",
+                report.steps
+            )
+        } else {
+            format!("trained {} steps in {:.0} s", report.steps, report.wall_s)
+        })
     }
 
     pub fn show(studio: &mut Studio, ui: &mut egui::Ui) {

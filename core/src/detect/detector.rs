@@ -192,10 +192,24 @@ fn centre(q: &[[f64; 2]; 4]) -> [f64; 2] {
 }
 
 fn inside(q: &[[f64; 2]; 4], p: [f64; 2]) -> bool {
-    super::stage1::targets::inside(q, p)
+    crate::geometry::inside_polygon(q, p)
 }
 
 impl Found {
+    /// What `annotate` draws for it: the stage-1 ROI, the outline, the keypoints.
+    pub fn overlay(&self) -> super::annotate::Overlay<'_> {
+        super::annotate::Overlay {
+            roi: &self.proposal.corners,
+            corners: Some(&self.marker.corners),
+            keypoints: self
+                .marker
+                .keypoints
+                .iter()
+                .map(|k| (k.x, k.y, k.category))
+                .collect(),
+        }
+    }
+
     /// The marker in the detections file's format.
     pub fn detection(&self) -> Detection {
         let m = &self.marker;

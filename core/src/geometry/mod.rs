@@ -28,6 +28,21 @@ pub enum GeometryError {
 }
 
 /// Axis-aligned bounds of points: [min x, min y, max x, max y].
+/// Even-odd point-in-polygon test.
+pub fn inside_polygon(polygon: &[[f64; 2]], p: [f64; 2]) -> bool {
+    let mut inside = false;
+    let n = polygon.len();
+    for i in 0..n {
+        let (a, b) = (polygon[i], polygon[(i + n - 1) % n]);
+        if (a[1] > p[1]) != (b[1] > p[1])
+            && p[0] < (b[0] - a[0]) * (p[1] - a[1]) / (b[1] - a[1]) + a[0]
+        {
+            inside = !inside;
+        }
+    }
+    inside
+}
+
 pub fn bounding_box(points: &[[f64; 2]]) -> [f64; 4] {
     points
         .iter()

@@ -7,8 +7,8 @@
 //! taken best first, each corner used once — clustering by geometry rather than NMS over boxes,
 //! in the spirit of the paper's corner assignment.
 
-use super::targets::inside;
 use super::STRIDE;
+use crate::geometry::inside_polygon as inside;
 
 /// A corner found on the heat map, in image pixels.
 #[derive(Debug, Clone, Copy, PartialEq)]

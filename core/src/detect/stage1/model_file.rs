@@ -5,7 +5,7 @@
 
 use super::net::{NetConfig, Stage1Net};
 use crate::detect::stage2::model_file::{
-    checked_weights, fnv1a, pack, unpack, weights_are_finite, ModelError,
+    checked_weights, fnv1a, pack, unpack, weight_bytes, weights_are_finite, ModelError,
 };
 use burn::module::Module;
 use burn::store::ModuleRecord;
@@ -33,14 +33,7 @@ pub fn to_bytes(
     families: &[String],
     steps: u64,
 ) -> Result<Vec<u8>, String> {
-    if !weights_are_finite(&net) {
-        return Err(
-            "the network's weights are not all finite numbers (training diverged); nothing was \
-             written"
-                .into(),
-        );
-    }
-    let weights = net.into_record().into_bytes().map_err(|e| e.to_string())?;
+    let weights = weight_bytes(net)?;
     let header = Stage1Header {
         format: 1,
         net: *config,

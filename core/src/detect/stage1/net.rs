@@ -10,10 +10,10 @@
 //! small head at one scale serves markers from 12 px to the whole image (≈ 0.15 GMAC per
 //! 640×480 at width 24). See [`macs`].
 
-use crate::detect::stage2::net::SeparableBlock;
+use crate::detect::stage2::net::{separable_trunk, stem, SeparableBlock};
 use burn::module::Module;
 use burn::nn::conv::{Conv2d, Conv2dConfig};
-use burn::nn::{BatchNorm, BatchNormConfig, PaddingConfig2d};
+use burn::nn::{BatchNorm, BatchNormConfig};
 use burn::tensor::activation::relu;
 use burn::tensor::{Device, Tensor};
 use serde::{Deserialize, Serialize};
@@ -28,26 +28,14 @@ pub struct NetConfig {
 }
 
 impl NetConfig {
-    /// (input channels, output channels, stride, dilation) of the trunk's separable blocks.
     fn trunk(&self) -> [(usize, usize, usize, usize); 5] {
-        let w = self.width;
-        [
-            (w / 4, w / 2, 1, 1),
-            (w / 2, w, 2, 1),
-            (w, w, 1, 1),
-            (w, w, 1, 2),
-            (w, w, 1, 4),
-        ]
+        separable_trunk(self.width)
     }
 
     pub fn init(&self, device: &Device) -> Stage1Net {
         let w = self.width;
         Stage1Net {
-            stem: Conv2dConfig::new([1, w / 4], [3, 3])
-                .with_stride([2, 2])
-                .with_padding(PaddingConfig2d::Explicit(1, 1, 1, 1))
-                .with_bias(false)
-                .init(device),
+            stem: stem(w, device),
             stem_bn: BatchNormConfig::new(w / 4).init(device),
             trunk: self
                 .trunk()
@@ -70,7 +58,7 @@ pub struct Stage1Net {
 }
 
 impl Stage1Net {
-    /// `x`: N × 1 × H × W normalised images (H, W multiples of [`STRIDE`]) → N × [`MAPS`] ×
+    /// `x`: N × 1 × H × W normalised images (H, W multiples of [`super::STRIDE`]) → N × [`MAPS`] ×
     /// H/4 × W/4 raw maps (logits for heat and mask).
     pub fn forward(&self, x: Tensor<4>) -> Tensor<4> {
         let mut x = relu(self.stem_bn.forward(self.stem.forward(x)));

@@ -7,6 +7,7 @@
 //! which is what [`super::group`] relies on.
 
 use super::STRIDE;
+use crate::geometry::inside_polygon;
 
 /// A marker as stage 1 sees it: its four ROI corners (in the family's order) and its outline.
 #[derive(Debug, Clone, PartialEq)]
@@ -48,21 +49,6 @@ pub fn diagonal_crossing(c: &[[f64; 2]; 4]) -> Option<[f64; 2]> {
     Some([c[0][0] + t * d1[0], c[0][1] + t * d1[1]])
 }
 
-/// Even-odd point-in-polygon test.
-pub fn inside(polygon: &[[f64; 2]], p: [f64; 2]) -> bool {
-    let mut inside = false;
-    let n = polygon.len();
-    for i in 0..n {
-        let (a, b) = (polygon[i], polygon[(i + n - 1) % n]);
-        if (a[1] > p[1]) != (b[1] > p[1])
-            && p[0] < (b[0] - a[0]) * (p[1] - a[1]) / (b[1] - a[1]) + a[0]
-        {
-            inside = !inside;
-        }
-    }
-    inside
-}
-
 /// The targets for a `width` × `height` image (multiples of [`STRIDE`]) showing `markers`.
 pub fn encode(width: usize, height: usize, markers: &[MarkerQuad]) -> Targets {
     let (columns, rows) = (width / STRIDE, height / STRIDE);
@@ -84,7 +70,7 @@ pub fn encode(width: usize, height: usize, markers: &[MarkerQuad]) -> Targets {
         for cy in 0..rows {
             for cx in 0..columns {
                 let p = [(cx as f64 + 0.5) * s, (cy as f64 + 0.5) * s];
-                if inside(&m.outline, p) {
+                if inside_polygon(&m.outline, p) {
                     t.mask[cy * columns + cx] = 1.0;
                 }
             }

@@ -12,6 +12,7 @@
 //! lets the model train on two CPU cores. (Training quads with a_i near 0.25 on both sides shrink the
 //! marker to 0.5 of the patch: 1.6 anchors per pitch for 10 × 10, 2.0 for 8 × 8.)
 
+use crate::geometry::inside_polygon;
 use crate::synth::KeypointTruth;
 
 /// Anchor class of background; category `c` is class `c + 1`.
@@ -154,7 +155,7 @@ pub fn encode(
         }
     }
     let mask = (0..n)
-        .map(|i| f32::from(u8::from(inside(outline, spec.anchor(i)))))
+        .map(|i| f32::from(u8::from(inside_polygon(outline, spec.anchor(i)))))
         .collect();
     let corners = patch_order(spec, roi);
     let q = spec.quadrant_centres();
@@ -190,21 +191,6 @@ pub fn patch_order(spec: &PatchSpec, roi: &[[f64; 2]]) -> [[f64; 2]; 4] {
         .min_by(|&a, &b| cost(a).total_cmp(&cost(b)))
         .unwrap_or(0);
     std::array::from_fn(|j| roi[(j + best) % 4])
-}
-
-/// Even-odd point-in-polygon test.
-fn inside(polygon: &[[f64; 2]], p: [f64; 2]) -> bool {
-    let mut inside = false;
-    let n = polygon.len();
-    for i in 0..n {
-        let (a, b) = (polygon[i], polygon[(i + n - 1) % n]);
-        if (a[1] > p[1]) != (b[1] > p[1])
-            && p[0] < (b[0] - a[0]) * (p[1] - a[1]) / (b[1] - a[1]) + a[0]
-        {
-            inside = !inside;
-        }
-    }
-    inside
 }
 
 /// Per-anchor network outputs of one patch, as plain numbers.

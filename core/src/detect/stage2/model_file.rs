@@ -97,14 +97,7 @@ pub fn to_bytes(
     family: &Family,
     steps: u64,
 ) -> Result<Vec<u8>, String> {
-    if !weights_are_finite(&net) {
-        return Err(
-            "the network's weights are not all finite numbers (training diverged); nothing was \
-             written"
-                .into(),
-        );
-    }
-    let weights = net.into_record().into_bytes().map_err(|e| e.to_string())?;
+    let weights = weight_bytes(net)?;
     let header = ModelHeader {
         format: 1,
         family: family.name().to_string(),
@@ -114,6 +107,19 @@ pub fn to_bytes(
         weights_fnv: format!("{:016x}", fnv1a(&weights)),
     };
     Ok(pack(MAGIC, &header, &weights))
+}
+
+/// A network's weights as burnpack bytes, refused when any is not finite: weights that are not
+/// make every detection garbage.
+pub(crate) fn weight_bytes<M: Module>(net: M) -> Result<Bytes, String> {
+    if !weights_are_finite(&net) {
+        return Err(
+            "the network's weights are not all finite numbers (training diverged); nothing was \
+             written"
+                .into(),
+        );
+    }
+    net.into_record().into_bytes().map_err(|e| e.to_string())
 }
 
 /// A model file's bytes: `magic`, the header's JSON length (u32 LE) and JSON, the weights.

@@ -29,16 +29,8 @@ pub struct NetConfig {
 }
 
 impl NetConfig {
-    /// (input channels, output channels, stride, dilation) of the trunk's separable blocks.
     fn trunk(&self) -> [(usize, usize, usize, usize); 5] {
-        let w = self.width;
-        [
-            (w / 4, w / 2, 1, 1),
-            (w / 2, w, 2, 1),
-            (w, w, 1, 1),
-            (w, w, 1, 2),
-            (w, w, 1, 4),
-        ]
+        separable_trunk(self.width)
     }
 
     /// Separable blocks of the template head: stride 2 from the anchor grid down to 2 × 2.
@@ -60,11 +52,7 @@ impl NetConfig {
                 .init(device)
         };
         Stage2Net {
-            stem: Conv2dConfig::new([1, w / 4], [3, 3])
-                .with_stride([2, 2])
-                .with_padding(PaddingConfig2d::Explicit(1, 1, 1, 1))
-                .with_bias(false)
-                .init(device),
+            stem: stem(w, device),
             stem_bn: BatchNormConfig::new(w / 4).init(device),
             trunk: self
                 .trunk()
@@ -82,6 +70,28 @@ impl NetConfig {
             template_out: conv(w / 2, 2, 1),
         }
     }
+}
+
+/// The stride-2 3 × 3 stem both networks start with (`width / 4` channels, batch norm after).
+pub(crate) fn stem(width: usize, device: &Device) -> Conv2d {
+    Conv2dConfig::new([1, width / 4], [3, 3])
+        .with_stride([2, 2])
+        .with_padding(PaddingConfig2d::Explicit(1, 1, 1, 1))
+        .with_bias(false)
+        .init(device)
+}
+
+/// (input channels, output channels, stride, dilation) of the separable blocks both networks'
+/// trunks use after a stride-2 stem of `width / 4` channels: to stride 4, then dilations 1, 2, 4.
+pub(crate) fn separable_trunk(width: usize) -> [(usize, usize, usize, usize); 5] {
+    let w = width;
+    [
+        (w / 4, w / 2, 1, 1),
+        (w / 2, w, 2, 1),
+        (w, w, 1, 1),
+        (w, w, 1, 2),
+        (w, w, 1, 4),
+    ]
 }
 
 /// Depthwise 3 × 3 → BN → ReLU → pointwise 1 × 1 → BN → ReLU.
