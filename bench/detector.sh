@@ -34,7 +34,7 @@ echo "== false positives: 200 marker-free 640×480 scenes"
 empty="$out/empty"
 [ -d "$empty" ] || $T synth apriltag-36h11 --mode camera --width 640 --height 480 --markers 0 \
   -n 200 --seed 77 -o "$empty" >/dev/null
-$T detect "$empty"/*.png --json "$out/empty-tagsmith.json" | tail -n +1 | grep -v ": 0 markers" || true
+$T detect "$empty"/[0-9]*.png --json "$out/empty-tagsmith.json" | tail -n +1 | grep -v ": 0 markers" || true
 $PY - "$out/empty-tagsmith.json" <<'PY'
 import json, sys
 f = json.load(open(sys.argv[1]))
@@ -49,7 +49,7 @@ for size in 640x480 1280x960; do
   [ -d "$speed" ] || $T synth apriltag-36h11 --mode camera --width $w --height $h --markers 1 \
     -n 40 --seed 5 -o "$speed" >/dev/null
   echo "== speed $size, one marker, 40 images (median)"
-  $T detect "$speed"/*.png --family apriltag-36h11 --json "$out/speed-$size-tagsmith.json" \
+  $T detect "$speed"/[0-9]*.png --sequential --family apriltag-36h11 --json "$out/speed-$size-tagsmith.json" \
     | $PY -c '
 import re, statistics, sys
 rows = [re.search(r"markers? .*in (\d+) ms \(stage 1 (\d+) ms, (\d+) ROIs?; stage 2 (\d+) ms\)", l) for l in sys.stdin]

@@ -32,7 +32,7 @@ def main():
     else:
         detect, name = opencv_detector(dictionary), f"OpenCV ArUco ({dictionary})"
     images = []
-    for path in sorted(glob.glob(os.path.join(a.folder, "*.png"))):
+    for path in sorted(glob.glob(os.path.join(a.folder, "[0-9]*.png"))):
         gray = cv2.imread(path, cv2.IMREAD_GRAYSCALE)
         start = cv2.getTickCount()
         found = detect(gray)

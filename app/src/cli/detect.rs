@@ -73,6 +73,10 @@ pub struct DetectArgs {
     /// Refuse images larger than this many pixels (width × height) before decoding them.
     #[arg(long, default_value_t = tagsmith::image::Limits::DEFAULT_MAX_PIXELS)]
     pub max_pixels: u64,
+    /// One image at a time (each image's time is then its latency, as benchmarks quote it);
+    /// by default images are detected in parallel on all cores.
+    #[arg(long)]
+    pub sequential: bool,
 }
 
 fn unit_interval() -> impl clap::builder::TypedValueParser<Value = f32> {
@@ -257,20 +261,20 @@ impl DetectArgs {
         // Images in parallel on all cores: the network's own kernels leave the second core idle
         // much of the time on small images.
         use rayon::prelude::*;
-        let results: Vec<Result<ImageDetections>> = self
-            .images
-            .par_iter()
-            .with_max_len(1)
-            .map(|path| {
-                let outcome = self.detect_one(&detector, path);
-                match &outcome {
-                    Ok((_, line)) => bar.suspend(|| println!("{line}")),
-                    Err(e) => bar.suspend(|| eprintln!("error: {e:#}")),
-                }
-                bar.inc(1);
-                outcome.map(|(entry, _)| entry)
-            })
-            .collect();
+        let one = |path: &PathBuf| {
+            let outcome = self.detect_one(&detector, path);
+            match &outcome {
+                Ok((_, line)) => bar.suspend(|| println!("{line}")),
+                Err(e) => bar.suspend(|| eprintln!("error: {e:#}")),
+            }
+            bar.inc(1);
+            outcome.map(|(entry, _)| entry)
+        };
+        let results: Vec<Result<ImageDetections>> = if self.sequential {
+            self.images.iter().map(one).collect()
+        } else {
+            self.images.par_iter().with_max_len(1).map(one).collect()
+        };
         let mut file = DetectionsFile {
             detector: name,
             images: Vec::new(),
@@ -499,6 +503,7 @@ mod tests {
             stage1: None,
             corner_threshold: 0.3,
             json: None,
+            sequential: false,
             side_mm: None,
             iterations: 2,
             refine: RefineMode::Full,

@@ -147,16 +147,23 @@ impl Detector {
         for reader in &self.readers {
             timings.reads += rois.len();
             let firsts = reader.stage2.first_passes(image, &rois);
-            for (i, first) in firsts.into_iter().enumerate() {
-                let Some(first) = first else { continue };
-                let Some(marker) = reader.stage2.continue_from(
-                    image,
-                    first,
-                    &self.options.read,
-                    camera.map(|c| (c, reader.side_m)),
-                ) else {
-                    continue;
-                };
+            // The rest of each read (second pass, alignment, pose) on both cores.
+            use rayon::prelude::*;
+            let read: Vec<(usize, Stage2Result)> = firsts
+                .into_par_iter()
+                .enumerate()
+                .with_max_len(1)
+                .filter_map(|(i, first)| {
+                    let marker = reader.stage2.continue_from(
+                        image,
+                        first?,
+                        &self.options.read,
+                        camera.map(|c| (c, reader.side_m)),
+                    )?;
+                    Some((i, marker))
+                })
+                .collect();
+            for (i, marker) in read {
                 // Two families reading one ROI: the one whose code needed fewer corrections.
                 if best[i]
                     .as_ref()

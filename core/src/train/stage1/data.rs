@@ -1,7 +1,8 @@
-//! Stage 1's training scenes: the synthesiser's quad mode at 256², one family per scene drawn
-//! from the stage's families (square built-ins and random designs), marker sides log-uniform
-//! from 12 px to about 160 px (larger markers are found on a coarser pyramid level), some scenes
-//! empty, some with heavy noise.
+//! Stage 1's training scenes at 256², one family per scene drawn from the stage's families
+//! (square built-ins and random designs): two thirds in the synthesiser's quad mode with marker
+//! sides log-uniform from 12 px to about 160 px (larger markers are found on a coarser pyramid
+//! level), a third in camera mode (98°, 0.1–0.8 m, views up to 75°); some scenes empty, some
+//! with heavy noise.
 //!
 //! Sample `i` of a run is a pure function of (run seed, i).
 
@@ -29,14 +30,20 @@ pub struct SceneSample {
 pub fn make_sample(families: &[Family], seed: u64) -> Result<SceneSample, String> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let family = &families[rng.random_range(0..families.len())];
-    let mut config = SynthConfig::new(Mode::Quad);
+    // A third of the scenes through a camera: steep views (up to 75°) foreshorten a marker far
+    // more than the quad mode's jittered squares, and markers may leave the frame.
+    let camera = rng.random_bool(0.35);
+    let mut config = SynthConfig::new(if camera { Mode::Camera } else { Mode::Quad });
     config.width = SCENE;
     config.height = SCENE;
     let (lo, hi) = (0.05f64.ln(), 0.62f64.ln());
     let side = rng.random_range(lo..hi).exp();
     config.quad_side = [side, side * 1.2];
+    config.distance_m = [0.1, 0.8];
     config.markers = if rng.random_bool(0.08) {
         [0, 0]
+    } else if camera {
+        [1, 3]
     } else {
         [1, 4]
     };
