@@ -618,6 +618,76 @@ fn the_families_panel_shows_each_family_drawn_with_its_numbers() {
     assert_eq!(spec(&h).name, "aruco-6x6_250-copy");
 }
 
+/// Detect panel → a sample photograph: the panel lists what `tagsmith detect` reports on the
+/// same image, and saves it in the CLI's format.
+#[test]
+fn the_detect_panel_lists_what_the_cli_detects_on_a_sample() {
+    let s = setup();
+    let mut h = studio(&s);
+    h.get_by_label("Detect").click();
+    h.run();
+    assert_eq!(h.state().panel, Panel::Detect);
+    h.get_by_label("aruco-6x6_250-tutorial.jpg").click();
+    h.run();
+    let listed: Vec<(String, usize, [[f64; 2]; 4])> = h
+        .state()
+        .detect
+        .result
+        .as_ref()
+        .expect("detected on the sample")
+        .found
+        .iter()
+        .map(|f| (f.family.clone(), f.marker.id, f.marker.corners))
+        .collect();
+    assert!(!listed.is_empty(), "the sample shows six ArUco markers");
+
+    let dir = tempfile::tempdir().unwrap();
+    let image = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../assets/samples/aruco-6x6_250-tutorial.jpg");
+    let out = dir.path().join("cli.json");
+    let status = std::process::Command::new(env!("CARGO_BIN_EXE_tagsmith"))
+        .args([
+            "detect",
+            image.to_str().unwrap(),
+            "--json",
+            out.to_str().unwrap(),
+        ])
+        .stdout(std::process::Stdio::null())
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let cli: serde_json::Value = serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap();
+    let cli: Vec<(String, usize, [[f64; 2]; 4])> = cli["images"][0]["detections"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|d| {
+            let c = |i: usize, j: usize| d["corners"][i][j].as_f64().unwrap();
+            (
+                d["family"].as_str().unwrap().to_string(),
+                d["id"].as_u64().unwrap() as usize,
+                std::array::from_fn(|i| [c(i, 0), c(i, 1)]),
+            )
+        })
+        .collect();
+    assert_eq!(listed.len(), cli.len());
+    for ((f1, id1, c1), (f2, id2, c2)) in listed.iter().zip(&cli) {
+        assert_eq!((f1, id1), (f2, id2));
+        for (a, b) in c1.iter().zip(c2) {
+            assert!((a[0] - b[0]).abs() < 1e-6 && (a[1] - b[1]).abs() < 1e-6);
+        }
+    }
+
+    h.get_by_label("Save detections (JSON)…").click();
+    h.run();
+    let saved = s.out.join("aruco-6x6_250-tutorial.detections.json");
+    let saved: serde_json::Value = serde_json::from_slice(&std::fs::read(&saved).unwrap()).unwrap();
+    assert_eq!(
+        saved["images"][0]["detections"].as_array().unwrap().len(),
+        listed.len()
+    );
+}
+
 /// Train panel: an unsaved design is refused in words; once saved, a run starts in the
 /// background, shows progress and writes checkpoints while the window keeps drawing; Stop leaves
 /// a resumable run, Resume finishes it and the model is attached next to the family file.
@@ -695,4 +765,33 @@ fn the_train_panel_trains_stops_resumes_and_attaches_the_model() {
     let report: serde_json::Value =
         serde_json::from_slice(&std::fs::read(run_dir.join("report.json")).unwrap()).unwrap();
     assert!(report["resumed_from"].as_u64().is_some());
+}
+
+/// Detect panel → Test scene: both families' synthetic scenes under the same conditions, each
+/// detected and its error against the truth listed.
+#[test]
+fn the_test_scene_lists_each_familys_detection_with_its_error() {
+    let s = setup();
+    let mut h = studio(&s);
+    h.get_by_label("Detect").click();
+    h.run();
+    h.get_by_label("Test scene").click();
+    h.run();
+    h.get_by_label("Render test scene").click();
+    h.run();
+    let scenes = &h.state().detect.scenes;
+    assert_eq!(scenes.len(), 2, "two families compared");
+    for scene in scenes {
+        let (corners, position, rotation) = scene
+            .errors
+            .unwrap_or_else(|| panic!("{} not found", scene.family));
+        assert!(corners < 1.0, "{}: {corners} px", scene.family);
+        assert!(position < 5.0, "{}: {position} mm", scene.family);
+        assert!(rotation < 2.0, "{}: {rotation}°", scene.family);
+    }
+    assert_eq!(
+        h.query_all_by_label_contains("px RMS, position").count(),
+        2,
+        "each scene's errors are listed"
+    );
 }

@@ -1,0 +1,188 @@
+//! End-to-end: `tagsmith detect` on whole images — stage 1 finds the markers, stage 2 of each
+//! requested family reads them — with the shipped weights.
+
+mod common;
+use common::*;
+use tagsmith::synth::augment::AugmentRanges;
+use tagsmith::synth::{synthesize_mixed, Mode, SynthConfig};
+
+fn family(name: &str) -> tagsmith::family::Family {
+    tagsmith::builtin::get(name).unwrap().unwrap()
+}
+
+/// A 960×720 camera image of three 80-mm markers, two AprilTag 36h11 and one ArUco 6×6, with
+/// light blur and noise; returns its truth.
+fn mixed_scene(dir: &std::path::Path) -> tagsmith::synth::Truth {
+    let (a, b) = (family("apriltag-36h11"), family("aruco-6x6_250"));
+    let mut config = SynthConfig::new(Mode::Camera);
+    config.width = 960;
+    config.height = 720;
+    config.markers = [3, 3];
+    config.side_m = [0.08, 0.08];
+    config.distance_m = [0.35, 0.6];
+    config.view_angle_deg = [0.0, 45.0];
+    let mut augment = AugmentRanges::none();
+    augment.marker_black = [20.0, 40.0];
+    augment.marker_white = [200.0, 230.0];
+    augment.blur_sigma = [0.6, 0.6];
+    augment.noise_sigma = [3.0, 3.0];
+    config.augment = augment;
+    let sample = synthesize_mixed(&[&a, &b], &config, 11).unwrap();
+    assert_eq!(
+        sample.truth.markers.len(),
+        3,
+        "the scene holds three markers"
+    );
+    let png = tagsmith::image::encode_png(&sample.image).unwrap();
+    std::fs::write(dir.join("scene.png"), png).unwrap();
+    let camera = serde_json::to_string(sample.truth.camera.as_ref().unwrap()).unwrap();
+    std::fs::write(dir.join("camera.json"), camera).unwrap();
+    sample.truth
+}
+
+#[test]
+fn the_shipped_detector_finds_three_markers_of_two_families_with_ids_corners_and_poses() {
+    let dir = tempfile::tempdir().unwrap();
+    let truth = mixed_scene(dir.path());
+    let run = tagsmith(
+        dir.path(),
+        &[
+            "detect",
+            "scene.png",
+            "--family",
+            "apriltag-36h11",
+            "--family",
+            "aruco-6x6_250",
+            "--camera",
+            "camera.json",
+            "--side-mm",
+            "80",
+            "--json",
+            "out.json",
+        ],
+    );
+    run.ok();
+    assert!(
+        run.stdout.contains("scene.png: 3 markers"),
+        "{}",
+        run.stdout
+    );
+    let out: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("out.json")).unwrap()).unwrap();
+    let found = out["images"][0]["detections"].as_array().unwrap();
+    assert_eq!(found.len(), 3, "{found:#?}");
+    for m in &truth.markers {
+        let name = m.family.as_deref().unwrap();
+        let d = found
+            .iter()
+            .find(|d| d["family"] == name && d["id"] == m.id)
+            .unwrap_or_else(|| panic!("{name} #{} not found", m.id));
+        for (c, t) in d["corners"].as_array().unwrap().iter().zip(&m.roi) {
+            let e = (c[0].as_f64().unwrap() - t[0]).hypot(c[1].as_f64().unwrap() - t[1]);
+            assert!(e < 1.5, "{name} #{}: corner off by {e:.2} px", m.id);
+        }
+        let pose = &d["pose"];
+        let want = &m.pose.as_ref().unwrap().pose;
+        let t: Vec<f64> = (0..3)
+            .map(|i| pose["translation_m"][i].as_f64().unwrap())
+            .collect();
+        let dist = (0..3)
+            .map(|i| (t[i] - want.translation_m[i]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        assert!(
+            dist < 0.003,
+            "{name} #{}: position off by {dist:.4} m",
+            m.id
+        );
+        // The angle of R_found · R_trueᵀ.
+        let r = |i: usize, j: usize| pose["rotation"][i][j].as_f64().unwrap();
+        let trace: f64 = (0..3)
+            .map(|i| (0..3).map(|k| r(i, k) * want.rotation[i][k]).sum::<f64>())
+            .sum();
+        let angle = ((trace - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees();
+        assert!(angle < 1.0, "{name} #{}: rotation off by {angle:.2}°", m.id);
+        assert!(d["scores"]["roi"].as_f64().unwrap() > 0.0);
+        assert!(!d["keypoints"].as_array().unwrap().is_empty());
+    }
+}
+
+#[test]
+fn an_image_without_markers_gives_none_and_a_corrupt_one_exit_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut config = SynthConfig::new(Mode::Camera);
+    config.width = 640;
+    config.height = 480;
+    config.markers = [0, 0];
+    let sample = synthesize_mixed(&[&family("apriltag-36h11")], &config, 3).unwrap();
+    let png = tagsmith::image::encode_png(&sample.image).unwrap();
+    std::fs::write(dir.path().join("empty.png"), png).unwrap();
+    let run = tagsmith(dir.path(), &["detect", "empty.png", "--json", "out.json"]);
+    run.ok();
+    assert!(
+        run.stdout.contains("empty.png: 0 markers"),
+        "{}",
+        run.stdout
+    );
+    let out: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("out.json")).unwrap()).unwrap();
+    assert_eq!(out["images"][0]["detections"], serde_json::json!([]));
+
+    std::fs::write(
+        dir.path().join("broken.jpg"),
+        b"\xff\xd8\xff\xe0 not really",
+    )
+    .unwrap();
+    let run = tagsmith(
+        dir.path(),
+        &["detect", "empty.png", "broken.jpg", "--json", "out2.json"],
+    );
+    assert_eq!(run.code, 2, "{}", run.stderr);
+    assert!(run.stderr.contains("broken.jpg"), "{}", run.stderr);
+    // The readable image is still reported.
+    let out: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("out2.json")).unwrap()).unwrap();
+    assert_eq!(out["images"].as_array().unwrap().len(), 1);
+}
+
+/// `kill -9` in the middle of stage-1 training loses at most one checkpoint interval.
+#[test]
+fn stage1_training_resumes_after_kill_9() {
+    let dir = tempfile::tempdir().unwrap();
+    let report = train_killed_then_resumed(
+        dir.path(),
+        &[
+            "train",
+            "--stage",
+            "roi",
+            "--batch",
+            "1",
+            "--width",
+            "8",
+            "--validate-every",
+            "1000",
+            "--validation-patches",
+            "1",
+        ],
+        3,
+        12,
+    );
+    let from = report["resumed_from"].as_u64().expect("resumed");
+    assert!(
+        from >= 3 && from.is_multiple_of(3) && from <= 12,
+        "resumed from {from}"
+    );
+    assert_eq!(report["steps"], 12);
+    assert_eq!(report["family"], "square markers");
+    // The model it wrote is a stage-1 model `detect` can use.
+    tagsmith(
+        dir.path(),
+        &["synth", "apriltag-36h11", "-n", "1", "-o", "s"],
+    )
+    .ok();
+    tagsmith(
+        dir.path(),
+        &["detect", "s/000000.png", "--stage1", "r/model.bin"],
+    )
+    .ok();
+}
