@@ -453,7 +453,7 @@ fn the_tabs_and_the_command_line_name_every_panel_from_one_list() {
         .iter()
         .map(|p| p.to_possible_value().unwrap().get_name().to_string())
         .collect();
-    assert_eq!(names, ["families", "designer", "print"]);
+    assert_eq!(names, ["families", "designer", "print", "train", "detect"]);
     for panel in Panel::ALL {
         assert_eq!(Panel::from_str(panel.name(), false), Ok(panel));
         assert_eq!(Panel::from_name(panel.name()), Some(panel));
