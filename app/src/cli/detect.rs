@@ -6,7 +6,7 @@ use anyhow::Context;
 use clap::Args;
 use std::path::{Path, PathBuf};
 use tagsmith::detect::annotate::{annotate, annotate_all, Overlay};
-use tagsmith::detect::detector::{FamilyReader, SHIPPED_STAGE1};
+use tagsmith::detect::detector::FamilyReader;
 use tagsmith::detect::refine::RefineMode;
 use tagsmith::detect::stage1::group::GroupOptions;
 use tagsmith::detect::stage1::Stage1;
@@ -175,12 +175,18 @@ impl DetectArgs {
 
     /// One image through the detector: its detections file entry and the line printed for it;
     /// writes its annotated copy when asked.
-    fn detect_one(&self, detector: &Detector, path: &Path) -> Result<(ImageDetections, String)> {
+    /// `camera`: the `--camera` file's path and text, read once for all images (a YAML
+    /// calibration is checked against each image's size).
+    fn detect_one(
+        &self,
+        detector: &Detector,
+        path: &Path,
+        camera: Option<(&Path, &str)>,
+    ) -> Result<(ImageDetections, String)> {
         let image = tagsmith::image::read(path, &self.limits())?;
-        let camera = match &self.camera {
-            Some(_) => Some(self.camera_for(&image)?.0),
-            None => None,
-        };
+        let camera = camera
+            .map(|(file, text)| parse_camera(file, text, (image.width, image.height)))
+            .transpose()?;
         let clock = std::time::Instant::now();
         let (found, timings) = detector.detect_with(&image, camera.as_ref());
         let time_ms = clock.elapsed().as_secs_f64() * 1e3;
@@ -240,7 +246,7 @@ impl DetectArgs {
         }
         let stage1 = match &self.stage1 {
             Some(path) => Stage1::load(path)?,
-            None => Stage1::from_bytes(SHIPPED_STAGE1, "shipped stage-1 model")?,
+            None => Stage1::shipped()?,
         };
         let mut detector = Detector::new(stage1, readers).failure()?;
         detector.options.read = ReadOptions {
@@ -258,11 +264,13 @@ impl DetectArgs {
             "{bar:30} {pos}/{len} [{elapsed_precise}, ETA {eta_precise}]",
         );
         let name = BenchDetector::name(&detector);
+        let camera_text = self.camera.as_deref().map(read_camera_file).transpose()?;
+        let camera = self.camera.as_deref().zip(camera_text.as_deref());
         // Images in parallel on all cores: the network's own kernels leave the second core idle
         // much of the time on small images.
         use rayon::prelude::*;
         let one = |path: &PathBuf| {
-            let outcome = self.detect_one(&detector, path);
+            let outcome = self.detect_one(&detector, path, camera);
             match &outcome {
                 Ok((_, line)) => bar.suspend(|| println!("{line}")),
                 Err(e) => bar.suspend(|| eprintln!("error: {e:#}")),
@@ -358,7 +366,7 @@ impl DetectSetArgs {
         if self.full {
             let stage1 = match &self.stage1 {
                 Some(path) => Stage1::load(path)?,
-                None => Stage1::from_bytes(SHIPPED_STAGE1, "shipped stage-1 model")?,
+                None => Stage1::shipped()?,
             };
             let mut reader = FamilyReader::new(family, model);
             reader.side_m = s.side_m;
@@ -445,16 +453,25 @@ fn parse_roi(text: &str) -> Result<[[f64; 2]; 4]> {
 }
 
 fn load_camera(path: &Path, size: (u32, u32)) -> Result<Camera> {
-    let text = std::fs::read_to_string(path)
+    parse_camera(path, &read_camera_file(path)?, size)
+}
+
+fn read_camera_file(path: &Path) -> Result<String> {
+    std::fs::read_to_string(path)
         .with_context(|| format!("cannot read {}", path.display()))
-        .bad_input()?;
+        .bad_input()
+}
+
+/// A camera file's text (`path` names it and says its format): JSON, or OpenCV YAML checked
+/// against the image `size`.
+fn parse_camera(path: &Path, text: &str, size: (u32, u32)) -> Result<Camera> {
     let camera = if matches!(
         path.extension().and_then(|e| e.to_str()),
         Some("yml" | "yaml")
     ) {
-        Camera::from_opencv_yaml(&text, Some(size)).concerning(path.display())?
+        Camera::from_opencv_yaml(text, Some(size)).concerning(path.display())?
     } else {
-        serde_json::from_str::<Camera>(&text).map_err(|e| bad_input!("{}: {e}", path.display()))?
+        serde_json::from_str::<Camera>(text).map_err(|e| bad_input!("{}: {e}", path.display()))?
     };
     camera
         .validate()

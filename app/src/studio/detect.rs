@@ -59,7 +59,7 @@ mod desktop {
     use super::SAMPLES;
     use egui::{Color32, Pos2, Rect, Stroke, Vec2};
     use tagsmith::detect::annotate::{annotate_all, Overlay};
-    use tagsmith::detect::detector::{FamilyReader, SHIPPED_STAGE1};
+    use tagsmith::detect::detector::FamilyReader;
     use tagsmith::detect::stage1::group::GroupOptions;
     use tagsmith::detect::stage1::Stage1;
     use tagsmith::detect::stage2::{shipped_families, Stage2};
@@ -177,7 +177,7 @@ mod desktop {
         /// Follows the designer: its family is offered when a trained model is attached to it.
         fn sync_design(&mut self, studio_design: Option<&super::super::design::Design>) {
             let attached = studio_design.and_then(|d| {
-                let family = d.validation().as_ref().ok()?.clone();
+                let family = d.validation().as_ref().ok()?;
                 let model = super::super::train::attached_model(d.path.as_ref()?);
                 model.exists().then_some((family, model))
             });
@@ -185,7 +185,8 @@ mod desktop {
                 (Some((f, m)), Some((family, model, _)))
                     if f.name() == family.name() && m == *model => {}
                 (Some((f, m)), _) => {
-                    self.design = Some((f, m, true));
+                    // Cloned only when the design or its model changed, not every frame.
+                    self.design = Some((f.clone(), m, true));
                     self.stale = true;
                 }
                 (None, Some(_)) => {
@@ -196,18 +197,10 @@ mod desktop {
             }
         }
 
-        /// Runs the detector on the image if anything changed since the last run.
-        pub fn refresh(&mut self) -> Result<(), String> {
-            if !self.stale {
-                return Ok(());
-            }
-            self.stale = false;
-            let Some(image) = &self.image else {
-                return Ok(());
-            };
+        /// Builds the detector for the ticked families when they changed since the last build.
+        fn build_detector(&mut self) -> Result<(), String> {
             let chosen = self.chosen();
             if chosen.is_empty() {
-                self.result = None;
                 return Err("choose at least one family to detect".into());
             }
             if self.detector.as_ref().is_none_or(|(f, _)| *f != chosen) {
@@ -224,13 +217,28 @@ mod desktop {
                     let stage2 = Stage2::load(model, family).map_err(|e| e.to_string())?;
                     readers.push(FamilyReader::new(family.clone(), stage2));
                 }
-                let stage1 = Stage1::from_bytes(SHIPPED_STAGE1, "shipped stage-1 model")
-                    .map_err(|e| e.to_string())?;
+                let stage1 = Stage1::shipped().map_err(|e| e.to_string())?;
                 let detector = Detector::new(stage1, readers).map_err(|e| e.to_string())?;
                 self.detector = Some((chosen, detector));
             }
-            let (_, detector) = self.detector.as_mut().expect("loaded above");
+            let (_, detector) = self.detector.as_mut().expect("built above");
             detector.options.propose.group.corner = self.corner_threshold;
+            Ok(())
+        }
+
+        /// Runs the detector on the image if anything changed since the last run.
+        pub fn refresh(&mut self) -> Result<(), String> {
+            if !self.stale || self.image.is_none() {
+                return Ok(());
+            }
+            self.stale = false;
+            if let Err(e) = self.build_detector() {
+                self.result = None;
+                return Err(e);
+            }
+            let (Some(image), Some((_, detector))) = (&self.image, &self.detector) else {
+                return Ok(());
+            };
             let clock = std::time::Instant::now();
             let (found, timings) = Detector::detect(detector, &image.gray);
             self.result = Some(DetectResult {
@@ -259,23 +267,8 @@ mod desktop {
                     }
                 }
             }
-            self.stale = true;
-            let had_image = self.image.is_some();
-            if !had_image {
-                // refresh() builds the detector only with an image to run on.
-                self.image = Some(LoadedImage {
-                    name: String::new(),
-                    gray: GrayImage::new(16, 16, 128),
-                    revision: 0,
-                });
-            }
-            let built = self.refresh();
-            if !had_image {
-                self.image = None;
-                self.result = None;
-            }
-            built?;
-            let (_, detector) = self.detector.as_mut().ok_or("no detector")?;
+            self.build_detector()?;
+            let (_, detector) = self.detector.as_mut().expect("built above");
             self.scenes.clear();
             for name in names {
                 let family = match tagsmith::builtin::get(&name) {
@@ -543,8 +536,7 @@ mod desktop {
                         let size = Vec2::new(scene.image.width as f32, scene.image.height as f32);
                         let scale = 0.6;
                         let response = ui.image((tex.id(), size * scale));
-                        let found: Vec<Found> = scene.found.iter().cloned().collect();
-                        draw_overlays(ui, response.rect, scale, &found);
+                        draw_overlays(ui, response.rect, scale, scene.found.as_slice());
                     }
                 });
             }

@@ -14,9 +14,6 @@ use crate::image::GrayImage;
 use crate::io::Stopwatch;
 use serde::Serialize;
 
-/// Stage-1 weights shipped in `assets/models/`: one model for every square family.
-pub const SHIPPED_STAGE1: &[u8] = include_bytes!("../../../assets/models/square.stage1.bin");
-
 /// One family's stage 2 and the marker size its poses assume.
 pub struct FamilyReader {
     pub family: Family,
@@ -108,7 +105,7 @@ impl Detector {
 
     /// The shipped stage 1 with the shipped stage 2 of each family.
     pub fn shipped(families: Vec<Family>) -> Result<Self, DetectorError> {
-        let stage1 = Stage1::from_bytes(SHIPPED_STAGE1, "shipped stage-1 model")?;
+        let stage1 = Stage1::shipped()?;
         let readers = families
             .into_iter()
             .map(FamilyReader::shipped)
@@ -270,7 +267,7 @@ mod tests {
             e.contains("tagsmith train aruco-4x4_50 --stage keypoints"),
             "{e}"
         );
-        let stage1 = Stage1::from_bytes(SHIPPED_STAGE1, "shipped").unwrap();
+        let stage1 = Stage1::shipped().unwrap();
         assert!(matches!(
             Detector::new(stage1, Vec::new()),
             Err(DetectorError::NoFamilies)

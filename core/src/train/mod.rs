@@ -24,7 +24,6 @@ use burn::tensor::Device;
 use loader::Loader;
 use serde::{Deserialize, Serialize};
 use stage::TrainStage;
-use stage1::RoiStage;
 use stage2::KeypointStage;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -190,18 +189,6 @@ pub fn train_keypoints(
     on_event: &mut dyn FnMut(StageEvent<KeypointStage>),
 ) -> Result<StageReport<KeypointStage>, TrainError> {
     let stage = Arc::new(KeypointStage::new(family, config.width));
-    train(stage, config, out, resume, stop, on_event)
-}
-
-/// Trains stage 1 (the ROI network for every square family): [`train`] with [`RoiStage`].
-pub fn train_roi(
-    config: &TrainConfig,
-    out: &Path,
-    resume: bool,
-    stop: &AtomicBool,
-    on_event: &mut dyn FnMut(StageEvent<RoiStage>),
-) -> Result<StageReport<RoiStage>, TrainError> {
-    let stage = Arc::new(RoiStage::new(config.width).map_err(TrainError::Data)?);
     train(stage, config, out, resume, stop, on_event)
 }
 

@@ -5,11 +5,9 @@
 
 use super::net::{NetConfig, Stage1Net};
 use crate::detect::stage2::model_file::{
-    checked_weights, fnv1a, pack, unpack, weight_bytes, weights_are_finite, ModelError,
+    checked_weights, fnv1a, load_weights, pack, unpack, weight_bytes, ModelError,
 };
-use burn::module::Module;
-use burn::store::ModuleRecord;
-use burn::tensor::{Bytes, Device};
+use burn::tensor::Device;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -61,16 +59,7 @@ pub fn from_bytes(
         return Err(corrupt(format!("network width {}", header.net.width)));
     }
     let weights = checked_weights(bytes, start, &header.weights_fnv, path)?;
-    let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(weights.to_vec()))
-        .map_err(|e| corrupt(format!("weights: {e}")))?;
-    let net = header
-        .net
-        .init(device)
-        .try_load_record(record)
-        .map_err(|e| corrupt(format!("weights: {e}")))?;
-    if !weights_are_finite(&net) {
-        return Err(ModelError::NotFinite { path: path.into() });
-    }
+    let net = load_weights(header.net.init(device), weights, path)?;
     Ok((net, header))
 }
 

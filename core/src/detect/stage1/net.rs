@@ -10,7 +10,7 @@
 //! small head at one scale serves markers from 12 px to the whole image (≈ 0.15 GMAC per
 //! 640×480 at width 24). See [`macs`].
 
-use crate::detect::stage2::net::{separable_trunk, stem, SeparableBlock};
+use crate::detect::stage2::net::{stem, trunk_blocks, SeparableBlock};
 use burn::module::Module;
 use burn::nn::conv::{Conv2d, Conv2dConfig};
 use burn::nn::{BatchNorm, BatchNormConfig};
@@ -28,20 +28,12 @@ pub struct NetConfig {
 }
 
 impl NetConfig {
-    fn trunk(&self) -> [(usize, usize, usize, usize); 5] {
-        separable_trunk(self.width)
-    }
-
     pub fn init(&self, device: &Device) -> Stage1Net {
         let w = self.width;
         Stage1Net {
             stem: stem(w, device),
             stem_bn: BatchNormConfig::new(w / 4).init(device),
-            trunk: self
-                .trunk()
-                .iter()
-                .map(|&(cin, cout, s, d)| SeparableBlock::new(cin, cout, s, d, device))
-                .collect(),
+            trunk: trunk_blocks(w, device),
             head: SeparableBlock::new(w, w, 1, 1, device),
             out: Conv2dConfig::new([w, MAPS], [1, 1]).init(device),
         }

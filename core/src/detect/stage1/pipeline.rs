@@ -12,6 +12,9 @@ use crate::image::GrayImage;
 use burn::tensor::{Device, Tensor, TensorData};
 use std::path::Path;
 
+/// Stage-1 weights shipped in `assets/models/`: one model for every square family.
+pub const SHIPPED_STAGE1: &[u8] = include_bytes!("../../../../assets/models/square.stage1.bin");
+
 /// The coarsest pyramid level's short side, in pixels: below it a marker that fills the view no
 /// longer has room for its quiet zone on the grid.
 pub const MIN_LEVEL_SIDE: u32 = 96;
@@ -53,6 +56,11 @@ impl Stage1 {
         Ok(Self::new(net, header, device))
     }
 
+    /// The stage-1 model shipped in `assets/models/` for every square family.
+    pub fn shipped() -> Result<Self, ModelError> {
+        Self::from_bytes(SHIPPED_STAGE1, "shipped stage-1 model")
+    }
+
     pub(crate) fn new(net: Stage1Net, header: Stage1Header, device: Device) -> Self {
         Self {
             net,
@@ -60,13 +68,6 @@ impl Stage1 {
             header,
             device,
         }
-    }
-
-    /// The network's maps for one image (any size; padded to the grid).
-    pub fn maps(&self, image: &GrayImage) -> Maps {
-        maps_of(&self.net, &self.device, std::slice::from_ref(image))
-            .pop()
-            .expect("one image in, one out")
     }
 
     /// Marker ROIs in `image`, best first.

@@ -177,6 +177,24 @@ pub(crate) fn checked_weights<'a>(
     Ok(weights)
 }
 
+/// `weights` (burnpack bytes) loaded into a fresh network, refused when they do not fit it or
+/// are not all finite numbers.
+pub(crate) fn load_weights<M: Module>(net: M, weights: &[u8], path: &str) -> Result<M, ModelError> {
+    let corrupt = |reason: String| ModelError::Corrupt {
+        path: path.into(),
+        reason,
+    };
+    let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(weights.to_vec()))
+        .map_err(|e| corrupt(format!("weights: {e}")))?;
+    let net = net
+        .try_load_record(record)
+        .map_err(|e| corrupt(format!("weights: {e}")))?;
+    if !weights_are_finite(&net) {
+        return Err(ModelError::NotFinite { path: path.into() });
+    }
+    Ok(net)
+}
+
 /// Reads the header without the weights.
 pub fn read_header(bytes: &[u8], path: &str) -> Result<(ModelHeader, usize), ModelError> {
     let (header, start): (ModelHeader, usize) = unpack(bytes, MAGIC, "stage-2", path)?;
@@ -223,16 +241,7 @@ pub fn from_bytes(
             header.net.classes
         )));
     }
-    let record = ModuleRecord::from_bytes(Bytes::from_bytes_vec(weights.to_vec()))
-        .map_err(|e| corrupt(format!("weights: {e}")))?;
-    let net = header
-        .net
-        .init(device)
-        .try_load_record(record)
-        .map_err(|e| corrupt(format!("weights: {e}")))?;
-    if !weights_are_finite(&net) {
-        return Err(ModelError::NotFinite { path: path.into() });
-    }
+    let net = load_weights(header.net.init(device), weights, path)?;
     Ok((net, header))
 }
 

@@ -54,11 +54,7 @@ impl NetConfig {
         Stage2Net {
             stem: stem(w, device),
             stem_bn: BatchNormConfig::new(w / 4).init(device),
-            trunk: self
-                .trunk()
-                .iter()
-                .map(|&(cin, cout, s, d)| SeparableBlock::new(cin, cout, s, d, device))
-                .collect(),
+            trunk: trunk_blocks(w, device),
             mask: conv(w, 1, 1),
             align: conv(w + 1, w, 1),
             keypoint: SeparableBlock::new(w, w, 1, 1, device),
@@ -92,6 +88,14 @@ pub(crate) fn separable_trunk(width: usize) -> [(usize, usize, usize, usize); 5]
         (w, w, 1, 2),
         (w, w, 1, 4),
     ]
+}
+
+/// The blocks of [`separable_trunk`].
+pub(crate) fn trunk_blocks(width: usize, device: &Device) -> Vec<SeparableBlock> {
+    separable_trunk(width)
+        .iter()
+        .map(|&(cin, cout, s, d)| SeparableBlock::new(cin, cout, s, d, device))
+        .collect()
 }
 
 /// Depthwise 3 × 3 → BN → ReLU → pointwise 1 × 1 → BN → ReLU.

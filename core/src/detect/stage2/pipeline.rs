@@ -136,17 +136,24 @@ impl Stage2 {
         image: &GrayImage,
         rois: &[[[f64; 2]; 4]],
     ) -> Vec<Option<Stage2Result>> {
-        let warped: Vec<Option<(GrayImage, Homography)>> =
-            rois.iter().map(|roi| self.warp(image, roi)).collect();
-        let patches: Vec<GrayImage> = warped.iter().flatten().map(|(p, _)| p.clone()).collect();
+        let mut patches = Vec::with_capacity(rois.len());
+        let to_images: Vec<Option<Homography>> = rois
+            .iter()
+            .map(|roi| {
+                let (patch, to_image) = self.warp(image, roi)?;
+                patches.push(patch);
+                Some(to_image)
+            })
+            .collect();
         if patches.is_empty() {
             return vec![None; rois.len()];
         }
         let mut raw = self.run_patches(&patches).into_iter();
-        warped
+        to_images
             .iter()
-            .map(|w| {
-                let (_, to_image) = w.as_ref()?;
+            .map(|to_image| {
+                // Only warped ROIs have an output: take one only for them.
+                let to_image = to_image.as_ref()?;
                 self.decode_patch(&raw.next()?, to_image)
             })
             .collect()
@@ -220,9 +227,7 @@ impl Stage2 {
     }
 
     fn pass(&self, image: &GrayImage, roi: &[[f64; 2]; 4]) -> Option<Stage2Result> {
-        let (patch, to_image) = self.warp(image, roi)?;
-        let raw = self.run_patches(std::slice::from_ref(&patch)).pop()?;
-        self.decode_patch(&raw, &to_image)
+        self.first_passes(image, std::slice::from_ref(roi)).pop()?
     }
 
     /// Post-processing of one patch's outputs; `to_image` maps patch pixels to the image.

@@ -1,7 +1,6 @@
 use super::data::make_sample;
 use super::validate::score;
 use super::*;
-use crate::detect::detector::SHIPPED_STAGE1;
 use crate::detect::stage1::Stage1;
 
 /// Stage 1's ROI recall on scenes of designs it never saw in training against the same figure
@@ -10,7 +9,7 @@ use crate::detect::stage1::Stage1;
 #[test]
 #[ignore = "a benchmark: 400 scenes through the shipped stage 1 (about a minute)"]
 fn stage1_finds_markers_of_designs_it_never_saw() {
-    let stage1 = Stage1::from_bytes(SHIPPED_STAGE1, "shipped").unwrap();
+    let stage1 = Stage1::shipped().unwrap();
     let options = ProposeOptions::default();
     let run = |families: &[Family], seed: u64| {
         let set: Vec<_> = (0..200)
