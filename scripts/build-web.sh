@@ -1,20 +1,29 @@
 #!/usr/bin/env bash
 # Builds the studio for browsers into app/dist (static files: serve them with any web server).
 #   scripts/build-web.sh            release build
-#   scripts/build-web.sh --serve    build, then serve on http://127.0.0.1:8080 (trunk serve)
-# Needs: rustup target add wasm32-unknown-unknown; cargo install trunk --version 0.21.14 --locked;
-# cargo install wasm-bindgen-cli --version <the wasm-bindgen version in Cargo.lock>.
+#   scripts/build-web.sh --serve    build, then serve on http://127.0.0.1:8080
+# Needs: rustup target add wasm32-unknown-unknown; cargo install wasm-bindgen-cli --version <the
+# wasm-bindgen version in Cargo.lock>. (cargo + wasm-bindgen is all trunk did for this one page.)
 set -euo pipefail
-cd "$(dirname "$0")/../app"
-want=$(awk '/^name = "wasm-bindgen"$/{getline; gsub(/"/,"",$3); print $3; exit}' ../Cargo.lock)
+root=$(cd "$(dirname "$0")/.." && pwd)
+cd "$root"
+want=$(awk '/^name = "wasm-bindgen"$/{getline; gsub(/"/,"",$3); print $3; exit}' Cargo.lock)
 have=$(wasm-bindgen --version 2>/dev/null | awk '{print $2}' || true)
 if [[ "$have" != "$want" ]]; then
   echo "wasm-bindgen-cli $want is needed (found: ${have:-none}):" >&2
   echo "  cargo install wasm-bindgen-cli --version $want" >&2
   exit 2
 fi
+cargo build --release --target wasm32-unknown-unknown -p tagsmith-studio --bin tagsmith
+target_dir=$(cargo metadata --format-version 1 --no-deps | python3 -c 'import json,sys; print(json.load(sys.stdin)["target_directory"])')
+rm -rf app/dist.tmp
+wasm-bindgen --target web --no-typescript --out-dir app/dist.tmp \
+  "$target_dir/wasm32-unknown-unknown/release/tagsmith.wasm"
+cp app/index.html app/dist.tmp/index.html
+# Swap the finished folder in whole, so a failed build never leaves a half-written dist.
+rm -rf app/dist && mv app/dist.tmp app/dist
+echo "built: $root/app/dist ($(du -sh app/dist | cut -f1); open it through a web server, e.g. python3 -m http.server -d app/dist)"
 if [[ "${1:-}" == "--serve" ]]; then
-  exec trunk serve --release --offline --address 127.0.0.1 --port 8080
+  echo "serving on http://127.0.0.1:8080 (Ctrl-C stops)"
+  exec python3 -m http.server 8080 --bind 127.0.0.1 -d app/dist
 fi
-trunk build --release --offline
-echo "built: $(pwd)/dist (open it through a web server, e.g. python3 -m http.server -d app/dist)"

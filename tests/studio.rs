@@ -735,12 +735,30 @@ fn the_train_panel_trains_stops_resumes_and_attaches_the_model() {
         frames.len()
     );
     assert!(h.query_by_label_contains("samples/s").is_some());
+    // The first checkpoint comes with a validation, and with it the pictures: the batch's
+    // samples with their truth and validation patches with the network's keypoints.
+    let pictures = h.state().train.live().unwrap().pictures.unwrap();
+    assert_eq!(
+        pictures.samples.len(),
+        2,
+        "one per sample of the batch of 2"
+    );
+    assert_eq!(pictures.predictions.len(), 6);
+    assert!(pictures.samples.iter().all(|p| !p.keypoints.is_empty()));
+    assert!(h
+        .query_by_label_contains("Training samples with their truth")
+        .is_some());
     h.get_by_label("Stop").click();
     run_until(&mut h, "the run to stop", |st| !st.train.is_running());
     h.run();
     let live = h.state().train.live().unwrap();
     let stopped_at = live.step;
     assert!(stopped_at < 2000);
+    // A stopped run is offered for resuming, and listed as such.
+    assert!(h.query_by_label_contains("An unfinished run").is_some());
+    h.get_by_label("Runs").click();
+    h.run();
+    assert!(h.query_by_label("unfinished (resumable)").is_some());
     let design_file = h.state().design.as_ref().unwrap().path.clone().unwrap();
     let runs = s.user.with_file_name("runs");
     let run_dir = std::fs::read_dir(&runs)
@@ -793,5 +811,65 @@ fn the_test_scene_lists_each_familys_detection_with_its_error() {
         h.query_all_by_label_contains("px RMS, position").count(),
         2,
         "each scene's errors are listed"
+    );
+}
+
+/// Detection latency in the Detect panel against `tagsmith detect` on the same sample, both
+/// from this build: the panel's whole frame (click → image decoded, detected, drawn) and the
+/// detector's own time, against the CLI's per-image time (process start and model loading
+/// excluded, as they are in the app after its first run). A benchmark (BENCHMARKS.md "Studio"):
+/// `cargo test --release -p tagsmith-studio --test studio -- --ignored latency --nocapture`.
+#[test]
+#[ignore = "a benchmark: run it on an idle machine"]
+fn detect_latency_in_the_app_is_the_clis() {
+    const RUNS: usize = 15;
+    const SAMPLE: &str = "aruco-6x6_250-tutorial.jpg";
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let s = setup();
+    let mut h = studio(&s);
+    h.get_by_label("Detect").click();
+    h.run();
+    // The first click loads the models.
+    h.get_by_label(SAMPLE).click();
+    h.run();
+    let (mut frames, mut detector) = (Vec::new(), Vec::new());
+    for _ in 0..RUNS {
+        let clock = Instant::now();
+        h.get_by_label(SAMPLE).click();
+        h.run();
+        frames.push(clock.elapsed().as_secs_f64() * 1e3);
+        detector.push(h.state().detect.result.as_ref().unwrap().time_ms);
+    }
+    let image = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../assets/samples/")
+        .join(SAMPLE);
+    let images: Vec<&Path> = std::iter::repeat_n(image.as_path(), RUNS + 1).collect();
+    let out = s.out.with_file_name("cli.json");
+    let status = std::process::Command::new(env!("CARGO_BIN_EXE_tagsmith"))
+        .arg("detect")
+        .args(&images)
+        .args(["--sequential", "--json", out.to_str().unwrap()])
+        .stdout(std::process::Stdio::null())
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let cli: serde_json::Value = serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap();
+    let cli: Vec<f64> = cli["images"].as_array().unwrap()[1..]
+        .iter()
+        .map(|i| i["time_ms"].as_f64().unwrap())
+        .collect();
+    let (frame, detector, cli) = (median(frames), median(detector), median(cli));
+    println!(
+        "{SAMPLE}: app frame {frame:.1} ms, app detector {detector:.1} ms, CLI {cli:.1} ms \
+         (medians of {RUNS}); app/CLI {:.2}× (detector), {:.2}× (frame)",
+        detector / cli,
+        frame / cli
+    );
+    assert!(
+        detector < 1.1 * cli,
+        "the app's detector is slower than the CLI's"
     );
 }

@@ -16,11 +16,29 @@ pub fn start() {
             .start(
                 canvas,
                 eframe::WebOptions::default(),
-                Box::new(|cc| Ok(Box::new(StudioApp::new(cc, Box::new(WebFiles::default()))))),
+                Box::new(|cc| {
+                    let mut app = StudioApp::new(cc, Box::new(WebFiles::default()));
+                    open_from_address(&mut app);
+                    Ok(Box::new(app))
+                }),
             )
             .await;
         if let Err(e) = started {
             log::error!("the studio could not start: {e:?}");
         }
     });
+}
+
+/// `…/#detect=SAMPLE` opens the Detect panel on that shipped sample: a link that shows the
+/// detector at work, and how scripts/web-detect.sh measures it in headless Chromium.
+fn open_from_address(app: &mut StudioApp) {
+    let hash = web_sys::window()
+        .and_then(|w| w.location().hash().ok())
+        .unwrap_or_default();
+    if let Some(sample) = hash.strip_prefix("#detect=") {
+        if !crate::studio::detect::open_sample(&mut app.studio, sample) {
+            app.studio
+                .error(format!("{sample}: no such sample (see assets/samples/)"));
+        }
+    }
 }

@@ -2,7 +2,13 @@
 
 use super::common::load_family;
 use super::error::{failure, Result};
-use tagsmith_studio::studio::Panel;
+use tagsmith_studio::studio::{detect, Panel};
+
+/// A bare name of one of the shipped samples (`--image aruco-6x6_250-tutorial.jpg`).
+fn is_sample(path: &std::path::Path) -> bool {
+    let name = path.to_string_lossy();
+    detect::SAMPLES.iter().any(|(n, _)| *n == name)
+}
 
 #[derive(clap::Args, Debug, Default)]
 pub struct StudioArgs {
@@ -14,6 +20,9 @@ pub struct StudioArgs {
     /// Start from a clean slate instead of the design kept from the last session.
     #[arg(long)]
     pub fresh: bool,
+    /// Open this image in the Detect panel (or a shipped sample by its name in assets/samples/).
+    #[arg(long, value_name = "IMAGE")]
+    pub image: Option<std::path::PathBuf>,
 }
 
 impl StudioArgs {
@@ -40,6 +49,16 @@ impl StudioArgs {
                 .with_drag_and_drop(true),
             ..Default::default()
         };
+        // Read before the window opens, so a wrong path is an error on the command line.
+        let image = match &self.image {
+            Some(path) if !path.exists() && is_sample(path) => Some((path.clone(), None)),
+            Some(path) => {
+                let bytes = std::fs::read(path)
+                    .map_err(|e| failure!("{}: cannot read the image: {e}", path.display()))?;
+                Some((path.clone(), Some(bytes)))
+            }
+            None => None,
+        };
         let user_folder = eframe::storage_dir("Tagsmith").map(|d| d.join("families"));
         eframe::run_native(
             "Tagsmith",
@@ -59,6 +78,22 @@ impl StudioArgs {
                 }
                 if let Some(panel) = self.panel {
                     app.studio.panel = panel;
+                }
+                match image {
+                    Some((path, Some(bytes))) => {
+                        use tagsmith_studio::studio::files::{OpenedFile, Purpose};
+                        let file = OpenedFile {
+                            purpose: Purpose::Image,
+                            name: path.display().to_string(),
+                            path: Some(path),
+                            bytes,
+                        };
+                        detect::open_image(&mut app.studio, file);
+                    }
+                    Some((path, None)) => {
+                        detect::open_sample(&mut app.studio, &path.to_string_lossy());
+                    }
+                    None => {}
                 }
                 Ok(Box::new(app))
             }),

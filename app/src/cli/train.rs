@@ -241,7 +241,7 @@ fn with_progress<S: TrainStage>(
             bar.set_message(message);
         }
         Event::Validated { step, metrics: m } => say(format!("step {step}: {}", metrics(&m))),
-        Event::Checkpointed { .. } => {}
+        Event::Checkpointed { .. } | Event::Pictured { .. } => {}
     })?;
     bar.finish();
     println!(

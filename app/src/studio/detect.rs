@@ -3,14 +3,12 @@
 //! category and IDs drawn over it, a table per marker, and the detections saved as the CLI's JSON
 //! or the annotated image as PNG. Results update as the families or the threshold change.
 //!
-//! The web build has no burn yet (DESIGN §8 asks for it; see the README's status), so there the
-//! panel says so instead of detecting.
-
-#[cfg(target_arch = "wasm32")]
-use super::{files::OpenedFile, Studio};
+//! The web build runs the same detector with the shipped weights (burn's CPU backend compiled to
+//! wasm), on the UI thread: a browser page has one thread unless the app ships a worker, and a
+//! detection there takes well under a second (BENCHMARKS.md "Studio"). A design's own model is a
+//! file next to its family file, so only the desktop offers it.
 
 /// Sample photographs shipped in `assets/samples/` (sources and licences in its README).
-#[cfg(not(target_arch = "wasm32"))]
 pub const SAMPLES: &[(&str, &[u8])] = &[
     (
         "aruco-6x6_250-tutorial.jpg",
@@ -22,37 +20,9 @@ pub const SAMPLES: &[(&str, &[u8])] = &[
     ),
 ];
 
-#[cfg(not(target_arch = "wasm32"))]
-pub use desktop::*;
+pub use panel::*;
 
-/// Nothing to keep where the panel only explains (a struct, not a unit, so the studio builds it
-/// the same way on every target).
-#[cfg(target_arch = "wasm32")]
-#[derive(Default)]
-pub struct DetectState {
-    _none: (),
-}
-
-#[cfg(target_arch = "wasm32")]
-pub fn open_image(studio: &mut Studio, file: OpenedFile) {
-    studio.error(format!(
-        "{}: detection runs in the desktop studio and `tagsmith detect`; the web build does not \
-         include the detector yet",
-        file.name
-    ));
-}
-
-#[cfg(target_arch = "wasm32")]
-pub fn show(_studio: &mut Studio, ui: &mut egui::Ui, _ctx: &egui::Context) {
-    ui.heading("Detect");
-    ui.label(
-        "Detection runs in the desktop studio and in `tagsmith detect`; the web build does not \
-         include the detector yet.",
-    );
-}
-
-#[cfg(not(target_arch = "wasm32"))]
-mod desktop {
+mod panel {
     use super::super::files::{OpenedFile, Purpose};
     use super::super::preview::{category_colour, gray_image};
     use super::super::Studio;
@@ -239,12 +209,23 @@ mod desktop {
             let (Some(image), Some((_, detector))) = (&self.image, &self.detector) else {
                 return Ok(());
             };
-            let clock = std::time::Instant::now();
+            let clock = tagsmith::io::Stopwatch::start();
             let (found, timings) = Detector::detect(detector, &image.gray);
+            let time_ms = clock.ms();
+            // The browser check (scripts/web-detect.sh) reads this line from the console.
+            log::info!(
+                "detected {} marker(s) in {} ({}×{}) in {time_ms:.1} ms (stage 1 {:.1} ms, stage 2 {:.1} ms)",
+                found.len(),
+                image.name,
+                image.gray.width,
+                image.gray.height,
+                timings.stage1_ms,
+                timings.stage2_ms
+            );
             self.result = Some(DetectResult {
                 found,
                 timings,
-                time_ms: clock.elapsed().as_secs_f64() * 1e3,
+                time_ms,
             });
             Ok(())
         }
@@ -374,23 +355,32 @@ mod desktop {
         }
     }
 
+    /// Opens one of [`SAMPLES`] by file name; `false` when there is no such sample.
+    pub fn open_sample(studio: &mut Studio, name: &str) -> bool {
+        let Some((name, bytes)) = SAMPLES.iter().find(|(n, _)| *n == name) else {
+            return false;
+        };
+        open_image(
+            studio,
+            OpenedFile {
+                purpose: Purpose::Image,
+                name: name.to_string(),
+                path: None,
+                bytes: bytes.to_vec(),
+            },
+        );
+        true
+    }
+
     pub fn show(studio: &mut Studio, ui: &mut egui::Ui, ctx: &egui::Context) {
         ui.horizontal_wrapped(|ui| {
             if ui.button("Open image…").clicked() {
                 studio.files.request_open(Purpose::Image);
             }
             ui.label("Samples:");
-            for (name, bytes) in SAMPLES {
+            for (name, _) in SAMPLES {
                 if ui.button(*name).clicked() {
-                    open_image(
-                        studio,
-                        OpenedFile {
-                            purpose: Purpose::Image,
-                            name: name.to_string(),
-                            path: None,
-                            bytes: bytes.to_vec(),
-                        },
-                    );
+                    open_sample(studio, name);
                 }
             }
         });

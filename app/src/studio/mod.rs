@@ -87,7 +87,7 @@ impl Panel {
             Panel::Families => families::show(studio, ui),
             Panel::Designer => designer::show(studio, ui, ctx),
             Panel::Print => print::show(studio, ui, ctx),
-            Panel::Train => train::show(studio, ui),
+            Panel::Train => train::show(studio, ui, ctx),
             Panel::Detect => detect::show(studio, ui, ctx),
         }
     }

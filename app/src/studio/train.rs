@@ -19,7 +19,7 @@ pub struct TrainState {
 }
 
 #[cfg(target_arch = "wasm32")]
-pub fn show(_studio: &mut super::Studio, ui: &mut egui::Ui) {
+pub fn show(_studio: &mut super::Studio, ui: &mut egui::Ui, _ctx: &egui::Context) {
     ui.heading("Train");
     ui.label("Training runs in the desktop studio and in `tagsmith train`, not in a browser.");
 }
@@ -40,7 +40,7 @@ mod desktop {
     use std::sync::{Arc, Mutex};
     use std::time::Instant;
     use tagsmith::family::Family;
-    use tagsmith::train::stage::TrainStage;
+    use tagsmith::train::stage::{Picture, TrainStage};
     use tagsmith::train::stage1::RoiStage;
     use tagsmith::train::stage2::KeypointStage;
     use tagsmith::train::{self, Event, TrainConfig};
@@ -90,6 +90,16 @@ mod desktop {
         pub data_wait: f64,
         pub last_checkpoint: Option<u64>,
         pub started: Option<Instant>,
+        /// The latest pictures: current training samples with their truth, validation samples
+        /// with the network's findings (shared: `Live` is cloned every frame).
+        pub pictures: Option<Arc<Pictures>>,
+    }
+
+    #[derive(Debug)]
+    pub struct Pictures {
+        pub step: u64,
+        pub samples: Vec<Picture>,
+        pub predictions: Vec<Picture>,
     }
 
     impl Live {
@@ -137,6 +147,17 @@ mod desktop {
                     self.validation.push((step, figures));
                 }
                 Event::Checkpointed { step } => self.last_checkpoint = Some(step),
+                Event::Pictured {
+                    step,
+                    samples,
+                    predictions,
+                } => {
+                    self.pictures = Some(Arc::new(Pictures {
+                        step,
+                        samples,
+                        predictions,
+                    }))
+                }
             }
         }
     }
@@ -158,6 +179,8 @@ mod desktop {
         pub last: Option<Live>,
         /// How the last run ended.
         pub outcome: Option<Result<String, String>>,
+        /// The runs list while it is open.
+        runs: Option<Vec<RunSummary>>,
     }
 
     impl TrainState {
@@ -204,6 +227,7 @@ mod desktop {
                 }
             });
             self.outcome = Some(outcome.clone());
+            self.runs = None;
             Some(outcome)
         }
     }
@@ -218,6 +242,71 @@ mod desktop {
             Some(dir) => dir.with_file_name("runs").join(name),
             None => PathBuf::from("runs").join(name),
         }
+    }
+
+    /// A run folder as the runs list shows it, read from its `report.json` and checkpoint.
+    #[derive(Debug, Clone, PartialEq)]
+    pub struct RunSummary {
+        pub folder: PathBuf,
+        /// Steps done and asked for, from the report (`None`: no report yet: killed or running).
+        pub steps: Option<(u64, u64)>,
+        pub wall_s: Option<f64>,
+        /// The last validation's figures, as text.
+        pub validation: Option<String>,
+        pub checkpoint: bool,
+        pub model: bool,
+    }
+
+    impl RunSummary {
+        pub fn read(folder: PathBuf) -> Self {
+            let report: Option<serde_json::Value> = std::fs::read(folder.join("report.json"))
+                .ok()
+                .and_then(|b| serde_json::from_slice(&b).ok());
+            let number = |v: &serde_json::Value, path: &str| v.pointer(path)?.as_f64();
+            let steps = report.as_ref().and_then(|r| {
+                Some((
+                    number(r, "/steps")? as u64,
+                    number(r, "/config/steps")? as u64,
+                ))
+            });
+            let validation = report.as_ref().and_then(|r| {
+                let last = r.pointer("/validation")?.as_array()?.last()?;
+                Some(format!(
+                    "step {}: {}",
+                    last.get(0)?,
+                    figures_text(last.get(1)?)
+                ))
+            });
+            Self {
+                steps,
+                wall_s: report.as_ref().and_then(|r| number(r, "/total_wall_s")),
+                validation,
+                checkpoint: folder.join("checkpoint.bin").exists(),
+                model: folder.join("model.bin").exists(),
+                folder,
+            }
+        }
+
+        /// Stopped or killed before its last step, with a checkpoint to continue from.
+        pub fn unfinished(&self) -> bool {
+            self.checkpoint && self.steps.is_none_or(|(done, asked)| done < asked)
+        }
+    }
+
+    /// Every run folder beside the user's families, newest name order.
+    pub fn runs(studio: &Studio) -> Vec<RunSummary> {
+        let Some(dir) = studio.files.user_folder().map(|d| d.with_file_name("runs")) else {
+            return Vec::new();
+        };
+        let mut folders: Vec<PathBuf> = std::fs::read_dir(dir)
+            .into_iter()
+            .flatten()
+            .flatten()
+            .map(|e| e.path())
+            .filter(|p| p.is_dir())
+            .collect();
+        folders.sort();
+        folders.into_iter().map(RunSummary::read).collect()
     }
 
     /// Why the design cannot be trained yet, in the designer's words.
@@ -340,7 +429,7 @@ mod desktop {
         })
     }
 
-    pub fn show(studio: &mut Studio, ui: &mut egui::Ui) {
+    pub fn show(studio: &mut Studio, ui: &mut egui::Ui, ctx: &egui::Context) {
         if let Some(outcome) = studio.train.poll() {
             match outcome {
                 Ok(m) => studio.info(m),
@@ -409,9 +498,22 @@ mod desktop {
         let can_start = blocker.is_none() && !running;
         let out = (!family_name.is_empty())
             .then(|| run_folder(studio, &family_name, studio.train.settings.stage));
-        let resumable = out
-            .as_ref()
-            .is_some_and(|o| o.join("checkpoint.bin").exists());
+        let this_run = out.clone().map(RunSummary::read);
+        let resumable = this_run.as_ref().is_some_and(|r| r.checkpoint);
+        // After a quit or a crash mid-run: say so, and offer to carry on.
+        if let Some(run) = this_run.as_ref().filter(|r| r.unfinished() && !running) {
+            let at = run
+                .steps
+                .map(|(done, asked)| format!(" at step {done} of {asked}"))
+                .unwrap_or_default();
+            ui.colored_label(
+                ui.visuals().warn_fg_color,
+                format!(
+                    "An unfinished run of {family_name} stopped{at}; its checkpoint is kept: \
+                     Resume carries on from it."
+                ),
+            );
+        }
         ui.horizontal(|ui| {
             if ui
                 .add_enabled(can_start, egui::Button::new("Start"))
@@ -441,6 +543,7 @@ mod desktop {
             ui.ctx()
                 .request_repaint_after(std::time::Duration::from_millis(200));
         }
+        runs_list(studio, ui);
         let Some(live) = studio.train.live() else {
             return;
         };
@@ -464,15 +567,171 @@ mod desktop {
                 figures_text(figures)
             ));
         }
-        Plot::new("losses")
-            .legend(Legend::default())
-            .height(260.0)
-            .x_axis_label("step")
-            .show(ui, |plot| {
-                for (name, points) in &live.losses {
-                    plot.line(Line::new(name.as_str(), PlotPoints::from(points.clone())));
+        ui.columns(2, |columns| {
+            Plot::new("losses")
+                .legend(Legend::default())
+                .height(240.0)
+                .x_axis_label("step")
+                .y_axis_label("loss")
+                .show(&mut columns[0], |plot| {
+                    for (name, points) in &live.losses {
+                        plot.line(Line::new(name.as_str(), PlotPoints::from(points.clone())));
+                    }
+                });
+            Plot::new("validation")
+                .legend(Legend::default())
+                .height(240.0)
+                .x_axis_label("step")
+                .y_axis_label("validation")
+                .show(&mut columns[1], |plot| {
+                    for (name, points) in validation_curves(&live.validation) {
+                        plot.line(Line::new(name, PlotPoints::from(points)));
+                    }
+                });
+        });
+        if let Some(pictures) = &live.pictures {
+            picture_row(
+                ui,
+                ctx,
+                studio,
+                &format!("Training samples with their truth (step {})", pictures.step),
+                "train-sample",
+                pictures.step,
+                &pictures.samples,
+            );
+            picture_row(
+                ui,
+                ctx,
+                studio,
+                &format!(
+                    "Validation: what the network finds (step {})",
+                    pictures.step
+                ),
+                "train-prediction",
+                pictures.step,
+                &pictures.predictions,
+            );
+        }
+    }
+
+    /// The run folders with their reports; read when the list is opened, not every frame.
+    fn runs_list(studio: &mut Studio, ui: &mut egui::Ui) {
+        let header = egui::CollapsingHeader::new("Runs").default_open(false);
+        let shown = header.show(ui, |ui| {
+            if studio.train.runs.is_none() {
+                studio.train.runs = Some(runs(studio));
+            }
+            let runs = studio.train.runs.clone().unwrap_or_default();
+            if runs.is_empty() {
+                ui.weak("No runs yet.");
+            }
+            egui::Grid::new("runs").striped(true).show(ui, |ui| {
+                for head in ["run", "steps", "wall", "last validation", "state"] {
+                    ui.strong(head);
+                }
+                ui.end_row();
+                for run in &runs {
+                    let name = run.folder.file_name().unwrap_or_default().to_string_lossy();
+                    ui.label(name)
+                        .on_hover_text(run.folder.display().to_string());
+                    ui.label(
+                        run.steps
+                            .map(|(d, a)| format!("{d}/{a}"))
+                            .unwrap_or_else(|| "–".into()),
+                    );
+                    ui.label(
+                        run.wall_s
+                            .map(|s| format!("{:.0} min", s / 60.0))
+                            .unwrap_or_else(|| "–".into()),
+                    );
+                    ui.label(run.validation.clone().unwrap_or_else(|| "–".into()));
+                    ui.label(if run.unfinished() {
+                        "unfinished (resumable)"
+                    } else if run.model {
+                        "finished"
+                    } else {
+                        "no model"
+                    });
+                    ui.end_row();
                 }
             });
+        });
+        // Closed: forget the list, so reopening it reads the folders again.
+        if shown.body_returned.is_none() {
+            studio.train.runs = None;
+        }
+    }
+
+    /// Validation figures over steps, one curve per figure that is a fraction (recall,
+    /// accuracy…), so they share the 0–1 axis; pixel errors are in the line above the plots.
+    fn validation_curves(
+        validation: &[(u64, serde_json::Value)],
+    ) -> BTreeMap<String, Vec<[f64; 2]>> {
+        let mut curves: BTreeMap<String, Vec<[f64; 2]>> = BTreeMap::new();
+        for (step, figures) in validation {
+            let serde_json::Value::Object(map) = figures else {
+                continue;
+            };
+            for (name, value) in map {
+                let is_fraction = ["recall", "accuracy", "precision", "rate"]
+                    .iter()
+                    .any(|w| name.contains(w));
+                if let Some(v) = value.as_f64().filter(|_| is_fraction) {
+                    curves
+                        .entry(name.clone())
+                        .or_default()
+                        .push([*step as f64, v]);
+                }
+            }
+        }
+        curves
+    }
+
+    /// A row of pictures with their marks: outlines (corner 0 ringed) and keypoints coloured by
+    /// category, as the Detect panel draws them.
+    fn picture_row(
+        ui: &mut egui::Ui,
+        ctx: &egui::Context,
+        studio: &mut Studio,
+        title: &str,
+        key: &str,
+        step: u64,
+        pictures: &[Picture],
+    ) {
+        use super::super::preview::{category_colour, gray_image};
+        use egui::{Color32, Pos2, Stroke, Vec2};
+        ui.label(title);
+        ui.horizontal_wrapped(|ui| {
+            for (i, picture) in pictures.iter().enumerate() {
+                let tex = studio
+                    .textures
+                    .get_or_make(ctx, &format!("{key}-{i}"), step, || {
+                        Ok(gray_image(&picture.image))
+                    });
+                let Ok(tex) = tex else { continue };
+                let size = Vec2::new(picture.image.width as f32, picture.image.height as f32);
+                let scale = 128.0 / size.x.max(size.y).max(1.0);
+                let rect = ui.image((tex.id(), size * scale)).rect;
+                let painter = ui.painter_at(rect);
+                let at = |p: [f64; 2]| {
+                    Pos2::new(
+                        rect.min.x + (p[0] as f32 + 0.5) * scale,
+                        rect.min.y + (p[1] as f32 + 0.5) * scale,
+                    )
+                };
+                for quad in &picture.outlines {
+                    let points: Vec<Pos2> = quad.iter().map(|&p| at(p)).collect();
+                    painter.add(egui::Shape::closed_line(
+                        points,
+                        Stroke::new(1.5, Color32::from_rgb(0, 200, 60)),
+                    ));
+                    painter.circle_stroke(at(quad[0]), 3.0, Stroke::new(1.0, Color32::RED));
+                }
+                for &(p, category) in &picture.keypoints {
+                    painter.circle_filled(at(p), 1.5, category_colour(category));
+                }
+            }
+        });
     }
 
     fn figures_text(figures: &serde_json::Value) -> String {

@@ -4,7 +4,7 @@
 
 pub mod annotate;
 mod detection;
-#[cfg(feature = "learn")]
+#[cfg(feature = "detect")]
 pub mod detector;
 pub mod refine;
 mod report;
@@ -14,6 +14,6 @@ pub mod stage2;
 pub use detection::{
     BenchDetector, DetectedKeypoint, Detection, DetectionsFile, ImageDetections, Scores,
 };
-#[cfg(feature = "learn")]
+#[cfg(feature = "detect")]
 pub use detector::{Detector, DetectorOptions, Found, Timings};
 pub use report::{MarkerReport, PoseReport};

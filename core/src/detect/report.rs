@@ -54,7 +54,7 @@ pub struct PoseReport {
     pub camera: String,
 }
 
-#[cfg(feature = "learn")]
+#[cfg(feature = "detect")]
 impl MarkerReport {
     /// The report of a stage-2 result (`None`: nothing decoded); the pose, when solved, for a
     /// marker of `side_mm` seen by a camera described by `camera`.

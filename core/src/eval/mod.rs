@@ -16,7 +16,7 @@
 mod plot;
 pub mod score;
 pub mod set;
-#[cfg(feature = "learn")]
+#[cfg(feature = "detect")]
 pub mod stage2_from_truth;
 
 use std::path::PathBuf;

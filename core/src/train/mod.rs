@@ -100,7 +100,17 @@ pub enum Event<M, L> {
     Checkpointed {
         step: u64,
     },
+    /// After each validation: a few of the current training samples with their ground truth,
+    /// and the first validation samples with what the network finds in them.
+    Pictured {
+        step: u64,
+        samples: Vec<stage::Picture>,
+        predictions: Vec<stage::Picture>,
+    },
 }
+
+/// How many samples [`Event::Pictured`] shows of each kind.
+pub const PICTURES: usize = 6;
 
 /// The run's `report.json`. `I`, `M`, `L`: the stage's network info, metrics and loss terms.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -233,6 +243,7 @@ pub fn train<S: TrainStage>(
         on_event(run.progress(&loader));
         if run.step.is_multiple_of(config.validate_every) || run.step == config.steps {
             on_event(run.validate(&validation));
+            on_event(run.pictures(&samples, &validation));
         }
         // A stopped run keeps the step it just made.
         if run.step.is_multiple_of(config.checkpoint_every)
@@ -344,6 +355,23 @@ impl<S: TrainStage> Run<S> {
         Event::Validated {
             step: self.step,
             metrics,
+        }
+    }
+
+    fn pictures(&self, batch: &[S::Sample], validation: &[S::Sample]) -> StageEvent<S> {
+        let net = self.stage.inference(&self.net);
+        Event::Pictured {
+            step: self.step,
+            samples: batch
+                .iter()
+                .take(PICTURES)
+                .map(|s| self.stage.picture(s, None))
+                .collect(),
+            predictions: validation
+                .iter()
+                .take(PICTURES)
+                .map(|s| self.stage.picture(s, Some(&net)))
+                .collect(),
         }
     }
 

@@ -3,6 +3,7 @@
 //! optimiser, learning-rate schedule, data workers, checkpoints, resume, events, report — so a
 //! new stage implements this trait and gets all of it.
 
+use crate::image::GrayImage;
 use burn::module::Module;
 use burn::tensor::{Device, Tensor};
 use serde::de::DeserializeOwned;
@@ -54,4 +55,19 @@ pub trait TrainStage: Send + Sync + 'static {
     /// A model file written by [`TrainStage::model_bytes`], back on the autodiff device; `name`
     /// names it in errors.
     fn load_model(&self, bytes: &[u8], name: &str, device: &Device) -> Result<Self::Net, String>;
+    /// The sample as the studio shows it: with its ground truth, or, given the network in
+    /// inference mode, with what the network finds in it.
+    fn picture(&self, sample: &Self::Sample, net: Option<&Self::Net>) -> Picture;
+}
+
+/// A sample drawn for a person: the network's input image and marks in its pixels (pixel
+/// centres at whole coordinates).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Picture {
+    #[serde(skip)]
+    pub image: GrayImage,
+    /// Keypoints and the category each carries.
+    pub keypoints: Vec<([f64; 2], usize)>,
+    /// Marker outlines (ROIs), corner 0 first.
+    pub outlines: Vec<[[f64; 2]; 4]>,
 }

@@ -3,7 +3,7 @@
 //! marker centre and the marker mask; [`group`] turns them into ROIs, and stage 2 reads each.
 //!
 //! [`targets`] (training targets) and [`group`] (corners → ROIs) are plain Rust; the network
-//! ([`net`]), its model file and the pipeline on an image need the `learn` feature (burn).
+//! ([`net`]), its model file and the pipeline on an image need the `detect` feature (burn).
 
 /// Input pixels per cell of the network's output grid.
 pub const STRIDE: usize = 4;
@@ -11,12 +11,12 @@ pub const STRIDE: usize = 4;
 pub mod group;
 pub mod targets;
 
-#[cfg(feature = "learn")]
+#[cfg(feature = "detect")]
 pub mod model_file;
-#[cfg(feature = "learn")]
+#[cfg(feature = "detect")]
 pub mod net;
-#[cfg(feature = "learn")]
+#[cfg(feature = "detect")]
 pub mod pipeline;
 
-#[cfg(feature = "learn")]
+#[cfg(feature = "detect")]
 pub use pipeline::{ProposeOptions, Stage1};

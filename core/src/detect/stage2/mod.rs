@@ -5,20 +5,20 @@
 //! [`anchors`] (patch geometry, target encoding and output decoding), [`sort`] (template fit) and
 //! [`decode`] (the chain from network outputs to an ID, shared by inference and validation) are
 //! plain Rust; the network ([`net`]), the model file ([`model_file`]) and the pipeline on an image
-//! ([`pipeline`]) need the `learn` feature (burn).
+//! ([`pipeline`]) need the `detect` feature (burn).
 
 pub mod anchors;
 pub mod decode;
 pub mod sort;
 
-#[cfg(feature = "learn")]
+#[cfg(feature = "detect")]
 pub mod model_file;
-#[cfg(feature = "learn")]
+#[cfg(feature = "detect")]
 pub mod net;
-#[cfg(feature = "learn")]
+#[cfg(feature = "detect")]
 pub mod pipeline;
 
-#[cfg(feature = "learn")]
+#[cfg(feature = "detect")]
 pub use pipeline::{ReadOptions, Stage2, Stage2Result};
 
 use crate::image::GrayImage;

@@ -5,7 +5,7 @@ pub mod data;
 pub mod loss;
 pub mod validate;
 
-use super::stage::TrainStage;
+use super::stage::{Picture, TrainStage};
 use crate::detect::stage1::model_file;
 use crate::detect::stage1::net::{macs, NetConfig, Stage1Net};
 use crate::detect::stage1::pipeline::{propose_with, ProposeOptions};
@@ -174,6 +174,21 @@ impl TrainStage for RoiStage {
 
     fn model_bytes(&self, net: Stage1Net, step: u64) -> Result<Vec<u8>, String> {
         model_file::to_bytes(net, &self.net, &self.family_names(), step)
+    }
+
+    fn picture(&self, sample: &SceneSample, net: Option<&Stage1Net>) -> Picture {
+        let outlines = match net {
+            None => sample.quads.clone(),
+            Some(net) => propose_with(net, &Device::flex(), &sample.image, &Default::default())
+                .into_iter()
+                .map(|p| p.corners)
+                .collect(),
+        };
+        Picture {
+            image: sample.image.clone(),
+            keypoints: Vec::new(),
+            outlines,
+        }
     }
 
     fn load_model(&self, bytes: &[u8], name: &str, device: &Device) -> Result<Stage1Net, String> {

@@ -5,7 +5,7 @@ pub mod data;
 pub mod loss;
 pub mod validate;
 
-use super::stage::TrainStage;
+use super::stage::{Picture, TrainStage};
 use crate::detect::stage2::anchors::PatchSpec;
 use crate::detect::stage2::model_file;
 use crate::detect::stage2::net::{macs, NetConfig, Stage2Net};
@@ -112,6 +112,10 @@ impl TrainStage for KeypointStage {
         model_file::to_bytes(net, &self.net, &self.family, step)
     }
 
+    fn picture(&self, sample: &PatchSample, net: Option<&Stage2Net>) -> Picture {
+        patch_picture(&self.family, &self.spec, self.net.classes, sample, net)
+    }
+
     fn load_model(&self, bytes: &[u8], name: &str, device: &Device) -> Result<Stage2Net, String> {
         let (net, header) =
             model_file::from_bytes(bytes, name, &self.family, device).map_err(|e| e.to_string())?;
@@ -122,6 +126,46 @@ impl TrainStage for KeypointStage {
             ));
         }
         Ok(net)
+    }
+}
+
+/// The patch with its true keypoints, or with those `net` finds and sorts onto the template.
+fn patch_picture(
+    family: &Family,
+    spec: &PatchSpec,
+    classes: usize,
+    sample: &PatchSample,
+    net: Option<&Stage2Net>,
+) -> Picture {
+    let keypoints = match net {
+        None => sample
+            .truth
+            .keypoints
+            .iter()
+            .filter(|k| k.visible)
+            .map(|k| ([k.x, k.y], k.category))
+            .collect(),
+        Some(net) => {
+            let p = spec.size as usize;
+            let x = burn::tensor::Tensor::<4>::from_data(
+                burn::tensor::TensorData::new(sample.input.clone(), [1, 1, p, p]),
+                &Device::flex(),
+            );
+            let raw = raw_outputs(net.forward(x), classes);
+            raw.first()
+                .and_then(|raw| crate::detect::stage2::decode::read_patch(family, spec, raw))
+                .map(|r| r.found.iter().map(|f| (f.pos, f.category)).collect())
+                .unwrap_or_default()
+        }
+    };
+    let outlines = match (net, <[[f64; 2]; 4]>::try_from(sample.truth.roi.as_slice())) {
+        (None, Ok(roi)) => vec![roi],
+        _ => Vec::new(),
+    };
+    Picture {
+        image: sample.image.clone(),
+        keypoints,
+        outlines,
     }
 }
 
