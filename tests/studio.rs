@@ -640,6 +640,15 @@ fn the_detect_panel_lists_what_the_cli_detects_on_a_sample() {
         .map(|f| (f.family.clone(), f.marker.id, f.marker.corners))
         .collect();
     assert!(!listed.is_empty(), "the sample shows six ArUco markers");
+    // Each marker's pose is drawn as axes from its centre (where its diagonals cross).
+    let result = h.state().detect.result.as_ref().unwrap();
+    for (f, axes) in result.found.iter().zip(&result.axes) {
+        let [origin, ..] = axes.expect("every marker of the sample has a pose");
+        let centre =
+            tagsmith::detect::stage1::targets::diagonal_crossing(&f.marker.corners).unwrap();
+        let off = (origin[0] - centre[0]).hypot(origin[1] - centre[1]);
+        assert!(off < 1.5, "axes {off:.2} px from the marker's centre");
+    }
 
     let dir = tempfile::tempdir().unwrap();
     let image = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -734,6 +743,8 @@ fn the_train_panel_trains_stops_resumes_and_attaches_the_model() {
         frames[frames.len() / 2],
         frames.len()
     );
+    // One more frame, to draw what the run reported since the last one.
+    h.step();
     assert!(h.query_by_label_contains("samples/s").is_some());
     // The first checkpoint comes with a validation, and with it the pictures: the batch's
     // samples with their truth and validation patches with the network's keypoints.
@@ -759,6 +770,13 @@ fn the_train_panel_trains_stops_resumes_and_attaches_the_model() {
     h.get_by_label("Runs").click();
     h.run();
     assert!(h.query_by_label("unfinished (resumable)").is_some());
+    // Start on an unfinished run asks before it replaces the checkpoint; Cancel keeps it.
+    h.get_by_label("Start").click();
+    h.run();
+    assert!(!h.state().train.is_running());
+    h.get_by_label("Cancel").click();
+    h.run();
+    assert!(h.query_by_label("Start over").is_none());
     let design_file = h.state().design.as_ref().unwrap().path.clone().unwrap();
     let runs = s.user.with_file_name("runs");
     let run_dir = std::fs::read_dir(&runs)

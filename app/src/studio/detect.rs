@@ -29,7 +29,7 @@ mod panel {
     use super::SAMPLES;
     use egui::{Color32, Pos2, Rect, Stroke, Vec2};
     use tagsmith::detect::annotate::{annotate_all, Overlay};
-    use tagsmith::detect::detector::FamilyReader;
+    use tagsmith::detect::detector::{guess_camera, FamilyReader};
     use tagsmith::detect::stage1::group::GroupOptions;
     use tagsmith::detect::stage1::Stage1;
     use tagsmith::detect::stage2::{shipped_families, Stage2};
@@ -49,6 +49,8 @@ mod panel {
     /// The last detection: what was found and how long it took.
     pub struct DetectResult {
         pub found: Vec<Found>,
+        /// Per marker found: its pose's axes in the image (origin, x, y, z ends), when posed.
+        pub axes: Vec<Option<[[f64; 2]; 4]>>,
         pub timings: Timings,
         pub time_ms: f64,
     }
@@ -108,6 +110,7 @@ mod panel {
         pub image: GrayImage,
         pub truth: tagsmith::synth::MarkerTruth,
         pub found: Option<Found>,
+        pub axes: Option<[[f64; 2]; 4]>,
         /// Corner RMS (px), position (mm) and rotation (°) errors of the found marker.
         pub errors: Option<(f64, f64, f64)>,
         pub revision: u64,
@@ -222,8 +225,14 @@ mod panel {
                 timings.stage1_ms,
                 timings.stage2_ms
             );
+            let camera = detector.camera.or_else(|| guess_camera(&image.gray));
+            let axes = found
+                .iter()
+                .map(|f| pose_axes(detector, f, camera.as_ref()))
+                .collect();
             self.result = Some(DetectResult {
                 found,
+                axes,
                 timings,
                 time_ms,
             });
@@ -281,10 +290,13 @@ mod panel {
                 };
                 detector.camera = sample.truth.camera;
                 let (found, _) = Detector::detect(detector, &sample.image);
-                detector.camera = None;
                 let found = found
                     .into_iter()
                     .find(|f| f.family == family.name() && f.marker.id == truth.id);
+                let axes = found
+                    .as_ref()
+                    .and_then(|f| pose_axes(detector, f, sample.truth.camera.as_ref()));
+                detector.camera = None;
                 let errors = found.as_ref().map(|f| scene_errors(f, &truth));
                 self.revision += 1;
                 self.scenes.push(TestScene {
@@ -292,6 +304,7 @@ mod panel {
                     image: sample.image,
                     truth,
                     found,
+                    axes,
                     errors,
                     revision: self.revision,
                 });
@@ -325,6 +338,21 @@ mod panel {
         }
     }
 
+    /// The marker's axes, as long as its side, as the pose puts them in the image.
+    fn pose_axes(
+        detector: &Detector,
+        f: &Found,
+        camera: Option<&tagsmith::geometry::Camera>,
+    ) -> Option<[[f64; 2]; 4]> {
+        let pose = f.marker.pose.as_ref()?;
+        let side = detector
+            .readers
+            .iter()
+            .find(|r| r.family.name() == f.family)?
+            .side_m;
+        Some(tagsmith::pose::axes_in_image(&pose.pose, camera?, side))
+    }
+
     fn scene_errors(f: &Found, truth: &tagsmith::synth::MarkerTruth) -> (f64, f64, f64) {
         let corners = f
             .marker
@@ -352,6 +380,31 @@ mod panel {
                 studio.info(format!("opened {}", file.name));
             }
             Err(e) => studio.error(format!("{}: {e}", file.name)),
+        }
+    }
+
+    /// Pasted text naming an image file (a path, or a `file://` address per line, as file
+    /// managers copy files): the first one is opened. Other text is ignored.
+    pub fn open_pasted(studio: &mut Studio, text: &str) {
+        let Some(path) = text
+            .lines()
+            .map(|l| l.trim())
+            .map(|l| l.strip_prefix("file://").unwrap_or(l))
+            .find(|l| super::super::files::is_image_name(l))
+        else {
+            return;
+        };
+        match std::fs::read(path) {
+            Ok(bytes) => open_image(
+                studio,
+                OpenedFile {
+                    purpose: Purpose::Image,
+                    name: path.to_string(),
+                    path: Some(path.into()),
+                    bytes,
+                },
+            ),
+            Err(e) => studio.error(format!("{path}: cannot read the pasted image: {e}")),
         }
     }
 
@@ -448,7 +501,7 @@ mod panel {
             let size = Vec2::new(image.gray.width as f32, image.gray.height as f32);
             let scale = (ui.available_width() / size.x).min(1.5);
             let response = ui.image((tex.id(), size * scale));
-            draw_overlays(ui, response.rect, scale, &result.found);
+            draw_overlays(ui, response.rect, scale, &result.found, &result.axes);
         }
         if save_json {
             save_detections(studio);
@@ -526,7 +579,13 @@ mod panel {
                         let size = Vec2::new(scene.image.width as f32, scene.image.height as f32);
                         let scale = 0.6;
                         let response = ui.image((tex.id(), size * scale));
-                        draw_overlays(ui, response.rect, scale, scene.found.as_slice());
+                        draw_overlays(
+                            ui,
+                            response.rect,
+                            scale,
+                            scene.found.as_slice(),
+                            std::slice::from_ref(&scene.axes),
+                        );
                     }
                 });
             }
@@ -572,7 +631,13 @@ mod panel {
             });
     }
 
-    fn draw_overlays(ui: &egui::Ui, rect: Rect, scale: f32, found: &[Found]) {
+    fn draw_overlays(
+        ui: &egui::Ui,
+        rect: Rect,
+        scale: f32,
+        found: &[Found],
+        axes: &[Option<[[f64; 2]; 4]>],
+    ) {
         let painter = ui.painter_at(rect);
         let at = |p: [f64; 2]| {
             // Pixel centres at whole coordinates: pixel 0 covers [0, 1) on screen.
@@ -585,17 +650,35 @@ mod panel {
             let points: Vec<Pos2> = q.iter().map(|&p| at(p)).collect();
             painter.add(egui::Shape::closed_line(points, Stroke::new(1.5, colour)));
         };
-        for f in found {
+        for (i, f) in found.iter().enumerate() {
             outline(&f.proposal.corners, Color32::from_rgb(255, 220, 0));
             outline(&f.marker.corners, Color32::from_rgb(0, 200, 60));
             painter.circle_stroke(at(f.marker.corners[0]), 5.0, Stroke::new(1.5, Color32::RED));
             for k in &f.marker.keypoints {
                 painter.circle_filled(at([k.x, k.y]), 2.0, category_colour(k.category));
             }
-            let centre = tagsmith::detect::stage1::group::quad_centre(&f.marker.corners);
+            // The ID above the marker, clear of the axes drawn from its centre.
+            let top = f
+                .marker
+                .corners
+                .iter()
+                .copied()
+                .min_by(|a, b| a[1].total_cmp(&b[1]))
+                .unwrap_or_default();
+            if let Some(Some([origin, ends @ ..])) = axes.get(i) {
+                // x red, y green, z blue: the usual colours of a pose's axes.
+                let colours = [
+                    Color32::from_rgb(255, 40, 40),
+                    Color32::from_rgb(40, 230, 40),
+                    Color32::from_rgb(60, 120, 255),
+                ];
+                for (end, colour) in ends.iter().zip(colours) {
+                    painter.line_segment([at(*origin), at(*end)], Stroke::new(2.5, colour));
+                }
+            }
             painter.text(
-                at(centre),
-                egui::Align2::CENTER_CENTER,
+                at(top) - Vec2::new(0.0, 4.0),
+                egui::Align2::CENTER_BOTTOM,
                 format!("#{}", f.marker.id),
                 egui::FontId::proportional(14.0),
                 Color32::from_rgb(255, 60, 200),

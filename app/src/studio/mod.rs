@@ -150,6 +150,9 @@ pub struct Studio {
     /// The window was asked to close with unsaved changes; the confirmation is showing.
     pub quit_prompt: bool,
     quit_confirmed: bool,
+    /// The previous frame's CPU time (ms) as eframe measured it, when running in eframe: the
+    /// Train panel shows it, so the UI's cost while training is visible.
+    pub frame_ms: Option<f32>,
 }
 
 impl Studio {
@@ -168,6 +171,7 @@ impl Studio {
             pending_replace: None,
             quit_prompt: false,
             quit_confirmed: false,
+            frame_ms: None,
         };
         studio.reload_library();
         studio
@@ -363,6 +367,22 @@ impl Studio {
         for file in dropped {
             if let Err(e) = self.files.accept_dropped(file) {
                 self.error(e);
+            }
+        }
+        // A pasted file path (or file:// address, as file managers copy files) of an image
+        // opens it in Detect, as a drop would. Not while a text field takes the paste.
+        if !ctx.egui_wants_keyboard_input() {
+            let pasted: Vec<String> = ctx.input(|i| {
+                i.events
+                    .iter()
+                    .filter_map(|e| match e {
+                        egui::Event::Paste(text) => Some(text.clone()),
+                        _ => None,
+                    })
+                    .collect()
+            });
+            for text in pasted {
+                detect::open_pasted(self, &text);
             }
         }
         for file in self.files.take_opened() {
@@ -587,7 +607,8 @@ impl StudioApp {
 }
 
 impl eframe::App for StudioApp {
-    fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
+    fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
+        self.studio.frame_ms = frame.info().cpu_usage.map(|s| 1e3 * s);
         self.studio.ui(ui);
     }
 

@@ -33,7 +33,7 @@ pub fn attached_model(family_file: &std::path::Path) -> std::path::PathBuf {
 mod desktop {
     use super::super::job::Job;
     use super::super::Studio;
-    use egui_plot::{Legend, Line, Plot, PlotPoints};
+    use egui_plot::{Legend, Line, Plot, PlotPoints, Points};
     use std::collections::BTreeMap;
     use std::path::PathBuf;
     use std::sync::atomic::{AtomicBool, Ordering};
@@ -59,6 +59,9 @@ mod desktop {
         pub batch: usize,
         pub width: usize,
         pub learning_rate: f64,
+        /// Where the run writes its checkpoints, model and report; empty: the default folder
+        /// beside the user's families ([`run_folder`]).
+        pub folder: String,
     }
 
     impl Default for Settings {
@@ -71,8 +74,26 @@ mod desktop {
                 batch: c.batch,
                 width: c.width,
                 learning_rate: c.learning_rate,
+                folder: String::new(),
             }
         }
+    }
+
+    /// Points per loss curve, at most (a 10 500-step run has 5 terms: 52 500 points unthinned).
+    pub const MAX_CURVE: usize = 2000;
+
+    /// Neighbouring points averaged in pairs (an odd last one kept).
+    fn halve(curve: &[[f64; 2]]) -> Vec<[f64; 2]> {
+        curve
+            .chunks(2)
+            .map(|pair| {
+                let n = pair.len() as f64;
+                let sum = pair
+                    .iter()
+                    .fold([0.0, 0.0], |s, p| [s[0] + p[0], s[1] + p[1]]);
+                [sum[0] / n, sum[1] / n]
+            })
+            .collect()
     }
 
     /// What the run has reported so far, shared with its thread.
@@ -137,7 +158,13 @@ mod desktop {
                     if let Ok(serde_json::Value::Object(terms)) = serde_json::to_value(&loss) {
                         for (name, value) in terms {
                             if let Some(v) = value.as_f64() {
-                                self.losses.entry(name).or_default().push([step as f64, v]);
+                                let curve = self.losses.entry(name).or_default();
+                                curve.push([step as f64, v]);
+                                // Plotting cost grows with the points: a long run's curve is
+                                // kept at most MAX_CURVE points long by averaging neighbours.
+                                if curve.len() >= 2 * MAX_CURVE {
+                                    *curve = halve(curve);
+                                }
                             }
                         }
                     }
@@ -181,6 +208,10 @@ mod desktop {
         pub outcome: Option<Result<String, String>>,
         /// The runs list while it is open.
         runs: Option<Vec<RunSummary>>,
+        /// Start was pressed on a folder with an unfinished run: waiting for "Start over".
+        pub confirm_start_over: bool,
+        /// The UI's recent frame times (ms) while a run trains: their median is shown.
+        pub frame_times: std::collections::VecDeque<f32>,
     }
 
     impl TrainState {
@@ -234,6 +265,10 @@ mod desktop {
 
     /// The run folder of a family and stage: beside the user's families folder.
     pub fn run_folder(studio: &Studio, family: &str, stage: StageChoice) -> PathBuf {
+        let chosen = studio.train.settings.folder.trim();
+        if !chosen.is_empty() {
+            return PathBuf::from(chosen);
+        }
         let name = match stage {
             StageChoice::Keypoints => format!("{family}-keypoints"),
             StageChoice::Roi => format!("{family}-roi"),
@@ -481,6 +516,14 @@ mod desktop {
                     )
                     .labelled_by(label.id);
                     ui.end_row();
+                    let label = ui.label("Run folder");
+                    ui.add(
+                        egui::TextEdit::singleline(&mut s.folder)
+                            .hint_text("default: beside your families (shown below)")
+                            .desired_width(360.0),
+                    )
+                    .labelled_by(label.id);
+                    ui.end_row();
                 });
             // The shipped stage-2 models: 10 500 steps of 16 at width 32 in about 51 minutes of
             // this machine's two cores (BENCHMARKS.md), ≈ 0.29 s per step.
@@ -514,12 +557,18 @@ mod desktop {
                 ),
             );
         }
+        let unfinished = this_run.as_ref().is_some_and(|r| r.unfinished());
         ui.horizontal(|ui| {
             if ui
                 .add_enabled(can_start, egui::Button::new("Start"))
                 .clicked()
             {
-                start(studio, false);
+                // A fresh start replaces the folder's checkpoint: never without asking.
+                if unfinished {
+                    studio.train.confirm_start_over = true;
+                } else {
+                    start(studio, false);
+                }
             }
             if ui
                 .add_enabled(can_start && resumable, egui::Button::new("Resume"))
@@ -539,6 +588,18 @@ mod desktop {
                 ui.weak(format!("run folder: {}", o.display()));
             }
         });
+        if studio.train.confirm_start_over && can_start {
+            ui.horizontal(|ui| {
+                ui.label("Starting afresh replaces the unfinished run's checkpoint.");
+                if ui.button("Start over").clicked() {
+                    studio.train.confirm_start_over = false;
+                    start(studio, false);
+                }
+                if ui.button("Cancel").clicked() {
+                    studio.train.confirm_start_over = false;
+                }
+            });
+        }
         if running {
             ui.ctx()
                 .request_repaint_after(std::time::Duration::from_millis(200));
@@ -548,7 +609,7 @@ mod desktop {
             return;
         };
         ui.label(format!(
-            "step {}/{}, {:.1} samples/s, data wait {:.0} %{}{}",
+            "step {}/{}, {:.1} samples/s, data wait {:.0} %{}{}{}",
             live.step,
             live.steps,
             live.samples_per_s,
@@ -559,6 +620,9 @@ mod desktop {
                 .unwrap_or_default(),
             live.last_checkpoint
                 .map(|s| format!(", checkpoint at step {s}"))
+                .unwrap_or_default(),
+            frame_median(studio, running)
+                .map(|ms| format!(", UI frame {ms:.1} ms (median)"))
                 .unwrap_or_default(),
         ));
         if let Some((step, figures)) = live.validation.last() {
@@ -584,8 +648,21 @@ mod desktop {
                 .x_axis_label("step")
                 .y_axis_label("validation")
                 .show(&mut columns[1], |plot| {
-                    for (name, points) in validation_curves(&live.validation) {
-                        plot.line(Line::new(name, PlotPoints::from(points)));
+                    // Markers as well as lines: validations are few (one is no line at all).
+                    // One colour per figure for both, so the legend shows it (not mixed grey).
+                    for (i, (name, points)) in
+                        validation_curves(&live.validation).into_iter().enumerate()
+                    {
+                        let colour = super::super::preview::category_colour(i);
+                        plot.line(
+                            Line::new(name.as_str(), PlotPoints::from(points.clone()))
+                                .color(colour),
+                        );
+                        plot.points(
+                            Points::new(name, PlotPoints::from(points))
+                                .radius(3.0)
+                                .color(colour),
+                        );
                     }
                 });
         });
@@ -612,6 +689,25 @@ mod desktop {
                 &pictures.predictions,
             );
         }
+    }
+
+    /// The median of the UI's last 200 frame times while training (eframe's CPU time per frame,
+    /// layout and painting), `None` before there are any.
+    fn frame_median(studio: &mut Studio, running: bool) -> Option<f32> {
+        let times = &mut studio.train.frame_times;
+        match (running, studio.frame_ms) {
+            (true, Some(ms)) => {
+                if times.len() == 200 {
+                    times.pop_front();
+                }
+                times.push_back(ms);
+            }
+            (false, _) => times.clear(),
+            _ => {}
+        }
+        let mut sorted: Vec<f32> = times.iter().copied().collect();
+        sorted.sort_by(f32::total_cmp);
+        sorted.get(sorted.len() / 2).copied()
     }
 
     /// The run folders with their reports; read when the list is opened, not every frame.
@@ -738,10 +834,46 @@ mod desktop {
         match figures {
             serde_json::Value::Object(map) => map
                 .iter()
-                .filter_map(|(k, v)| v.as_f64().map(|v| format!("{k} {v:.3}")))
+                .filter_map(|(k, v)| match (v.as_u64(), v.as_f64()) {
+                    (Some(n), _) => Some(format!("{k} {n}")),
+                    (None, Some(v)) => Some(format!("{k} {v:.3}")),
+                    _ => None,
+                })
                 .collect::<Vec<_>>()
                 .join(", "),
             other => other.to_string(),
+        }
+    }
+
+    #[cfg(test)]
+    mod tests {
+        use super::*;
+
+        #[derive(serde::Serialize)]
+        struct Loss {
+            total: f64,
+        }
+
+        /// The shipped models' 10 500 steps: the curve stays short enough to draw every frame
+        /// and still spans the run, in step order.
+        #[test]
+        fn a_long_runs_loss_curve_stays_short_enough_to_draw() {
+            let mut live = Live::default();
+            for step in 1..=10_500u64 {
+                live.record::<(), Loss>(Event::Step {
+                    step,
+                    loss: Loss {
+                        total: 1.0 / step as f64,
+                    },
+                    samples_per_s: 1.0,
+                    data_wait: 0.0,
+                });
+            }
+            let curve = &live.losses["total"];
+            assert!(curve.len() < 2 * MAX_CURVE && curve.len() >= MAX_CURVE / 2);
+            // From the first per cent of the run to its last.
+            assert!(curve[0][0] < 105.0 && curve[curve.len() - 1][0] > 10_395.0);
+            assert!(curve.windows(2).all(|w| w[0][0] < w[1][0]));
         }
     }
 }

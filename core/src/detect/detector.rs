@@ -61,6 +61,12 @@ pub enum DetectorError {
     NoFamilies,
 }
 
+/// The intrinsics poses assume when none are given: the image's size and a 70° diagonal field of
+/// view (a typical webcam or phone); `None` for an image too small to have one.
+pub fn guess_camera(image: &GrayImage) -> Option<Camera> {
+    Camera::from_diagonal_fov(image.width, image.height, 70.0).ok()
+}
+
 pub struct Detector {
     pub stage1: Stage1,
     pub readers: Vec<FamilyReader>,
@@ -133,7 +139,7 @@ impl Detector {
         let camera = match camera {
             Some(c) => Some(c),
             None => {
-                guessed = Camera::from_diagonal_fov(image.width, image.height, 70.0).ok();
+                guessed = guess_camera(image);
                 guessed.as_ref()
             }
         };

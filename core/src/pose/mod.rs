@@ -28,6 +28,18 @@ pub struct PnpSolution {
     pub covariance: Option<Matrix6<f64>>,
 }
 
+/// The marker frame's origin and the ends of its x, y and z axes, `length_m` long, in image
+/// pixels: how a pose is drawn (x red, y green, z blue, by convention).
+pub fn axes_in_image(pose: &Pose, camera: &Camera, length_m: f64) -> [[f64; 2]; 4] {
+    let ends = [
+        [0.0, 0.0, 0.0],
+        [length_m, 0.0, 0.0],
+        [0.0, length_m, 0.0],
+        [0.0, 0.0, length_m],
+    ];
+    ends.map(|p| camera.project(pose.apply(p)))
+}
+
 /// The 1-σ uncertainty of a pose along the camera's axes.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct PoseUncertainty {

@@ -186,3 +186,30 @@ fn the_reported_uncertainty_matches_the_scatter_of_noisy_solutions() {
         "scatter {rms:.2e} m, predicted {mean_predicted:.2e} m"
     );
 }
+
+/// A marker square to the camera, 1 m ahead: its axes drawn from the principal point, x to the
+/// right and y up in the image (the marker frame's y is up, the image's down), z along the line
+/// of sight (a point), each 0.1 m long → f × 0.1 px.
+#[test]
+fn axes_of_a_facing_marker_point_right_up_and_at_the_camera() {
+    let camera = Camera {
+        width: 640,
+        height: 480,
+        fx: 500.0,
+        fy: 500.0,
+        cx: 320.0,
+        cy: 240.0,
+        distortion: [0.0; 5],
+    };
+    // Facing the camera: the marker's z (out of its face) points back along the camera's -z.
+    let pose = Pose {
+        rotation: Rotation3::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI),
+        translation: Vector3::new(0.0, 0.0, 1.0),
+    };
+    let [origin, x, y, z] = axes_in_image(&pose, &camera, 0.1);
+    let near = |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).hypot(a[1] - b[1]) < 1e-9;
+    assert!(near(origin, [320.0, 240.0]), "{origin:?}");
+    assert!(near(x, [370.0, 240.0]), "{x:?}");
+    assert!(near(y, [320.0, 190.0]), "{y:?}");
+    assert!(near(z, [320.0, 240.0]), "{z:?}");
+}
