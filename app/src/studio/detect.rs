@@ -18,6 +18,10 @@ pub const SAMPLES: &[(&str, &[u8])] = &[
         "apriltag-36h11-swarmathon.jpg",
         include_bytes!("../../../assets/samples/apriltag-36h11-swarmathon.jpg"),
     ),
+    (
+        "apriltag-xo-36h11-synthetic.png",
+        include_bytes!("../../../assets/samples/apriltag-xo-36h11-synthetic.png"),
+    ),
 ];
 
 pub use panel::*;
@@ -595,7 +599,7 @@ mod panel {
     fn table(ui: &mut egui::Ui, found: &[Found]) {
         egui::Grid::new("detections")
             .striped(true)
-            .num_columns(6)
+            .num_columns(8)
             .show(ui, |ui| {
                 for head in [
                     "family",
@@ -603,6 +607,8 @@ mod panel {
                     "corrected",
                     "reprojection px",
                     "distance mm",
+                    "position x, y, z mm",
+                    "tilt °",
                     "refined",
                 ] {
                     ui.strong(head);
@@ -616,12 +622,15 @@ mod panel {
                     match &m.pose {
                         Some(p) => {
                             ui.label(format!("{:.2}", p.rms_px));
-                            let t = p.pose.translation;
-                            ui.label(format!("{:.0}", 1000.0 * t.norm()));
+                            let t = 1000.0 * p.pose.translation;
+                            ui.label(format!("{:.0}", t.norm()));
+                            ui.label(format!("{:.1}, {:.1}, {:.1}", t[0], t[1], t[2]));
+                            ui.label(format!("{:.1}", tilt_deg(&p.pose)));
                         }
                         None => {
-                            ui.label("–");
-                            ui.label("–");
+                            for _ in 0..4 {
+                                ui.label("–");
+                            }
                         }
                     }
                     let refined = m.refinement.as_ref().is_some_and(|r| r.refined);
@@ -629,6 +638,15 @@ mod panel {
                     ui.end_row();
                 }
             });
+    }
+
+    /// The angle between the marker's face normal and the line of sight to it: 0° face-on.
+    fn tilt_deg(pose: &tagsmith::geometry::Pose) -> f64 {
+        // The marker's z axis in the camera frame is the rotation's third column.
+        let r = pose.rotation.matrix();
+        let t = pose.translation.normalize();
+        let cos = -(r[(0, 2)] * t[0] + r[(1, 2)] * t[1] + r[(2, 2)] * t[2]);
+        cos.clamp(-1.0, 1.0).acos().to_degrees()
     }
 
     fn draw_overlays(
@@ -719,6 +737,31 @@ mod panel {
             Ok(Some(place)) => studio.info(format!("saved {place}")),
             Ok(None) => {}
             Err(e) => studio.error(format!("not saved: {e}")),
+        }
+    }
+
+    #[cfg(test)]
+    mod tests {
+        use super::tilt_deg;
+        use tagsmith::geometry::Pose;
+
+        /// Face-on is 0° wherever the marker is in the view; turning it about its own x axis
+        /// tilts it by that angle; seen from the side of a line of sight, not the optical axis.
+        #[test]
+        fn tilt_is_the_angle_between_the_face_and_the_line_of_sight() {
+            let facing = Pose::from(&tagsmith::geometry::PoseJson {
+                rotation: [[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]],
+                translation_m: [0.0, 0.0, 1.0],
+            });
+            assert!(tilt_deg(&facing) < 1e-6);
+            let c = 30f64.to_radians().cos();
+            let s = 30f64.to_radians().sin();
+            // Turned 30° about the marker's x axis, after facing the camera.
+            let turned = Pose::from(&tagsmith::geometry::PoseJson {
+                rotation: [[1.0, 0.0, 0.0], [0.0, -c, s], [0.0, -s, -c]],
+                translation_m: [0.0, 0.0, 1.0],
+            });
+            assert!((tilt_deg(&turned) - 30.0).abs() < 1e-6, "{}", tilt_deg(&turned));
         }
     }
 }

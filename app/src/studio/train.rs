@@ -79,8 +79,9 @@ mod desktop {
         }
     }
 
-    /// Points per loss curve, at most (a 10 500-step run has 5 terms: 52 500 points unthinned).
-    pub const MAX_CURVE: usize = 2000;
+    /// Points per loss curve before it is halved (a 10 500-step run has 5 terms: 52 500 points
+    /// unthinned; the plot is about 650 px wide).
+    pub const MAX_CURVE: usize = 400;
 
     /// Neighbouring points averaged in pairs (an odd last one kept).
     fn halve(curve: &[[f64; 2]]) -> Vec<[f64; 2]> {
