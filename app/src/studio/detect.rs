@@ -761,7 +761,11 @@ mod panel {
                 rotation: [[1.0, 0.0, 0.0], [0.0, -c, s], [0.0, -s, -c]],
                 translation_m: [0.0, 0.0, 1.0],
             });
-            assert!((tilt_deg(&turned) - 30.0).abs() < 1e-6, "{}", tilt_deg(&turned));
+            assert!(
+                (tilt_deg(&turned) - 30.0).abs() < 1e-6,
+                "{}",
+                tilt_deg(&turned)
+            );
         }
     }
 }
