@@ -251,21 +251,25 @@ fn timing_on_a_harness_set() {
         let plane: Vec<[f64; 2]> = roi.iter().map(|&p| camera.normalise(p)).collect();
         let start = Homography::from_points(&f.roi_points()[..4], &plane).unwrap();
         let id = m["id"].as_u64().unwrap() as usize;
-        for _ in 0..3 {
+        // The fastest of seven per marker: on a shared machine the other runs measure the
+        // neighbours as much as the code.
+        let mut fastest = f64::INFINITY;
+        for _ in 0..7 {
             let r = refine_marker(&image, &f, id, Lens::Camera(&camera), &start, &cache).unwrap();
-            align.push(r.report.time_ms);
-            iterations.push(r.report.iterations as f64);
+            fastest = fastest.min(r.report.time_ms);
             if r.report.render_ms > 0.05 {
                 render.push(r.report.render_ms);
+                iterations.push(r.report.iterations as f64);
             }
         }
+        align.push(fastest);
     }
     align.sort_by(f64::total_cmp);
     render.sort_by(f64::total_cmp);
     iterations.sort_by(f64::total_cmp);
     eprintln!(
-        "alignment median {:.2} ms over {} ({} Gauss-Newton iterations), template render median \
-         {:.2} ms over {}",
+        "alignment median {:.2} ms over {} markers (each the fastest of 7; {} Gauss-Newton \
+         iterations), template render median {:.2} ms over {}",
         align[align.len() / 2],
         align.len(),
         iterations[iterations.len() / 2],
