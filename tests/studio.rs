@@ -891,3 +891,31 @@ fn detect_latency_in_the_app_is_the_clis() {
         "the app's detector is slower than the CLI's"
     );
 }
+
+/// The web build detects in a real browser: scripts/web-detect.sh serves app/dist, opens the
+/// Detect panel on the ArUco sample in headless Chromium and prints the detector's line, which
+/// must list the sample's six markers. Needs the built page (scripts/build-web.sh), Debian's
+/// chromium and Node.js: `cargo test -p tagsmith-studio --test studio -- --ignored browser`.
+#[test]
+#[ignore = "needs scripts/build-web.sh's output, chromium and node"]
+fn the_browser_build_detects_the_samples_markers() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let dir = tempfile::tempdir().unwrap();
+    let shot = dir.path().join("web.png");
+    let out = std::process::Command::new(root.join("scripts/web-detect.sh"))
+        .arg(&shot)
+        .arg("aruco-6x6_250-tutorial.jpg")
+        .output()
+        .expect("scripts/web-detect.sh runs");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout.contains("detected 6 marker(s) in aruco-6x6_250-tutorial.jpg (640×480)"),
+        "{stdout}"
+    );
+    assert!(shot.exists(), "no screenshot");
+}
