@@ -79,11 +79,11 @@ mod desktop {
         }
     }
 
-    /// Points per loss curve before it is halved (a 10 500-step run has 5 terms: 52 500 points
-    /// unthinned; the plot is about 650 px wide).
+    /// Points per loss curve, between this and twice this (a 10 500-step run has 5 terms:
+    /// 52 500 points unthinned; the plot is about 650 px wide).
     pub const MAX_CURVE: usize = 400;
 
-    /// Neighbouring points averaged in pairs (an odd last one kept).
+    /// Neighbouring points averaged in pairs.
     fn halve(curve: &[[f64; 2]]) -> Vec<[f64; 2]> {
         curve
             .chunks(2)
@@ -112,6 +112,10 @@ mod desktop {
         pub data_wait: f64,
         pub last_checkpoint: Option<u64>,
         pub started: Option<Instant>,
+        /// Steps per loss-curve point (doubles as the run grows) and each term's running sums
+        /// (step, value, count) towards its next point.
+        pub stride: u64,
+        pending: BTreeMap<String, [f64; 3]>,
         /// The latest pictures: current training samples with their truth, validation samples
         /// with the network's findings (shared: `Live` is cloned every frame).
         pub pictures: Option<Arc<Pictures>>,
@@ -159,15 +163,37 @@ mod desktop {
                     if let Ok(serde_json::Value::Object(terms)) = serde_json::to_value(&loss) {
                         for (name, value) in terms {
                             if let Some(v) = value.as_f64() {
-                                let curve = self.losses.entry(name).or_default();
-                                curve.push([step as f64, v]);
-                                // Plotting cost grows with the points: a long run's curve is
-                                // kept at most MAX_CURVE points long by averaging neighbours.
-                                if curve.len() >= 2 * MAX_CURVE {
-                                    *curve = halve(curve);
+                                // Plotting cost grows with the points: each point is the
+                                // mean of `stride` steps, and the stride doubles (the curve
+                                // halved) whenever a curve reaches 2 × MAX_CURVE points, so
+                                // every point of a curve covers as many steps.
+                                let bin = self.pending.entry(name.clone()).or_default();
+                                bin[0] += step as f64;
+                                bin[1] += v;
+                                bin[2] += 1.0;
+                                if bin[2] as u64 >= self.stride.max(1) {
+                                    let point = [bin[0] / bin[2], bin[1] / bin[2]];
+                                    *bin = [0.0; 3];
+                                    self.losses.entry(name).or_default().push(point);
                                 }
                             }
                         }
+                    }
+                    if self.losses.values().any(|c| c.len() >= 2 * MAX_CURVE) {
+                        let stride = self.stride.max(1) as f64;
+                        for (name, curve) in self.losses.iter_mut() {
+                            // An odd last point goes back to its term's running sums, so that
+                            // every point after the halving covers twice the steps.
+                            if curve.len() % 2 == 1 {
+                                let [x, y] = curve.pop().expect("odd length");
+                                let bin = self.pending.entry(name.clone()).or_default();
+                                bin[0] += x * stride;
+                                bin[1] += y * stride;
+                                bin[2] += stride;
+                            }
+                            *curve = halve(curve);
+                        }
+                        self.stride = 2 * self.stride.max(1);
                     }
                 }
                 Event::Validated { step, metrics } => {
@@ -875,6 +901,9 @@ mod desktop {
             // From the first per cent of the run to its last.
             assert!(curve[0][0] < 105.0 && curve[curve.len() - 1][0] > 10_395.0);
             assert!(curve.windows(2).all(|w| w[0][0] < w[1][0]));
+            // Every point covers as many steps: evenly spaced, no seam where it was halved.
+            let gaps: Vec<f64> = curve.windows(2).map(|w| w[1][0] - w[0][0]).collect();
+            assert!(gaps.iter().all(|&g| (g - gaps[0]).abs() < 1e-9), "{gaps:?}");
         }
     }
 }
