@@ -350,7 +350,14 @@ impl DetectSetArgs {
         use tagsmith::eval::set::{self, Group};
         use tagsmith::eval::stage2_from_truth::Stage2FromTruth;
         let s = set::load(&self.set)?;
-        let family = load_family(&s.family)?;
+        // The set keeps the exact family it was generated with: a user's own family is found
+        // there, not only a built-in of that name.
+        let kept = self.set.join("family.json");
+        let family = if kept.is_file() {
+            load_family(&kept.to_string_lossy())?
+        } else {
+            load_family(&s.family)?
+        };
         if !(0.0..0.5).contains(&self.roi_noise) {
             return Err(bad_input!("--roi-noise must be in [0, 0.5)"));
         }
