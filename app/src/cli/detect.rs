@@ -343,6 +343,17 @@ pub struct DetectSetArgs {
     pub seed: u64,
 }
 
+/// The family a benchmark set was generated with: the `family.json` the set keeps (a user's own
+/// family is found there, not only a built-in of that name), else the built-in `name`.
+fn set_family(set: &Path, name: &str) -> Result<tagsmith::Family> {
+    let kept = set.join("family.json");
+    if kept.is_file() {
+        load_family(&kept.to_string_lossy())
+    } else {
+        load_family(name)
+    }
+}
+
 impl DetectSetArgs {
     /// Stage 2 on every marker of a benchmark set from its ground-truth ROI moved by stage-1-like
     /// noise; the time per image is stage 2 alone (warps, network, post-processing, PnP, all passes).
@@ -350,14 +361,7 @@ impl DetectSetArgs {
         use tagsmith::eval::set::{self, Group};
         use tagsmith::eval::stage2_from_truth::Stage2FromTruth;
         let s = set::load(&self.set)?;
-        // The set keeps the exact family it was generated with: a user's own family is found
-        // there, not only a built-in of that name.
-        let kept = self.set.join("family.json");
-        let family = if kept.is_file() {
-            load_family(&kept.to_string_lossy())?
-        } else {
-            load_family(&s.family)?
-        };
+        let family = set_family(&self.set, &s.family)?;
         if !(0.0..0.5).contains(&self.roi_noise) {
             return Err(bad_input!("--roi-noise must be in [0, 0.5)"));
         }
@@ -512,6 +516,24 @@ fn load_model(model: Option<&Path>, family: &Family) -> Result<Stage2> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A set generated from a user's family file names a family no built-in has: detect-set
+    /// finds it in the set's `family.json`; a set without one falls back to the built-in name.
+    #[test]
+    fn a_sets_own_family_file_is_found_before_the_builtins() {
+        let dir = tempfile::tempdir().unwrap();
+        let bench =
+            PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../bench/unseen/bardot-7x7.json");
+        std::fs::copy(&bench, dir.path().join("family.json")).unwrap();
+        let family = set_family(dir.path(), "bardot-7x7").unwrap();
+        assert_eq!(family.name(), "bardot-7x7");
+        let empty = tempfile::tempdir().unwrap();
+        assert!(set_family(empty.path(), "bardot-7x7").is_err());
+        assert_eq!(
+            set_family(empty.path(), "apriltag-36h11").unwrap().name(),
+            "apriltag-36h11"
+        );
+    }
 
     #[test]
     fn a_broken_image_is_bad_input_named_once() {
