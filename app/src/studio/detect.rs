@@ -24,748 +24,740 @@ pub const SAMPLES: &[(&str, &[u8])] = &[
     ),
 ];
 
-pub use panel::*;
+use super::files::{OpenedFile, Purpose};
+use super::preview::{category_colour, gray_image};
+use super::Studio;
+use egui::{Color32, Pos2, Rect, Stroke, Vec2};
+use tagsmith::detect::annotate::{annotate_all, Overlay};
+use tagsmith::detect::detector::FamilyReader;
+use tagsmith::detect::stage1::group::GroupOptions;
+use tagsmith::detect::stage1::Stage1;
+use tagsmith::detect::stage2::{shipped_families, Stage2};
+use tagsmith::detect::{BenchDetector, DetectionsFile, Detector, Found, ImageDetections, Timings};
+use tagsmith::image::GrayImage;
 
-mod panel {
-    use super::super::files::{OpenedFile, Purpose};
-    use super::super::preview::{category_colour, gray_image};
-    use super::super::Studio;
-    use super::SAMPLES;
-    use egui::{Color32, Pos2, Rect, Stroke, Vec2};
-    use tagsmith::detect::annotate::{annotate_all, Overlay};
-    use tagsmith::detect::detector::{guess_camera, FamilyReader};
-    use tagsmith::detect::stage1::group::GroupOptions;
-    use tagsmith::detect::stage1::Stage1;
-    use tagsmith::detect::stage2::{shipped_families, Stage2};
-    use tagsmith::detect::{
-        BenchDetector, DetectionsFile, Detector, Found, ImageDetections, Timings,
-    };
-    use tagsmith::image::GrayImage;
+/// An image to detect on.
+pub struct LoadedImage {
+    pub name: String,
+    pub gray: GrayImage,
+    /// Bumped per image, so the texture is rebuilt.
+    pub revision: u64,
+}
 
-    /// An image to detect on.
-    pub struct LoadedImage {
-        pub name: String,
-        pub gray: GrayImage,
-        /// Bumped per image, so the texture is rebuilt.
-        pub revision: u64,
+/// The last detection: what was found and how long it took.
+pub struct DetectResult {
+    pub found: Vec<Found>,
+    /// Per marker found: its pose's axes in the image (origin, x, y, z ends), when posed.
+    pub axes: Vec<Option<[[f64; 2]; 4]>>,
+    pub timings: Timings,
+    pub time_ms: f64,
+}
+
+pub struct DetectState {
+    /// Families with shipped weights and whether to detect them.
+    pub families: Vec<(String, bool)>,
+    /// The design being edited, when a model trained in the Train panel is attached to it:
+    /// its family, model file and whether to detect it.
+    pub design: Option<(tagsmith::family::Family, std::path::PathBuf, bool)>,
+    pub corner_threshold: f32,
+    pub image: Option<LoadedImage>,
+    pub result: Option<DetectResult>,
+    /// The loaded detector and the families it was built for.
+    detector: Option<(Vec<String>, Detector)>,
+    stale: bool,
+    revision: u64,
+    pub scene: SceneSettings,
+    /// The test scenes of the last render, one per compared family.
+    pub scenes: Vec<TestScene>,
+}
+
+/// The synthetic test scene's conditions, the same for both families compared.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SceneSettings {
+    pub first: String,
+    /// Empty: no second family.
+    pub second: String,
+    pub distance_m: f64,
+    pub angle_deg: f64,
+    pub noise: f32,
+    pub blur: f32,
+    /// Gray level of the marker's white (lighting).
+    pub white: f32,
+    pub seed: u64,
+}
+
+impl Default for SceneSettings {
+    fn default() -> Self {
+        let mut shipped = shipped_families();
+        Self {
+            first: shipped.next().unwrap_or_default().to_string(),
+            second: shipped.next().unwrap_or_default().to_string(),
+            distance_m: 0.5,
+            angle_deg: 30.0,
+            noise: 4.0,
+            blur: 0.6,
+            white: 220.0,
+            seed: 1,
+        }
+    }
+}
+
+/// One family's test scene: the image, its truth and how the detector did on it.
+pub struct TestScene {
+    pub family: String,
+    pub image: GrayImage,
+    pub truth: tagsmith::synth::MarkerTruth,
+    pub found: Option<Found>,
+    pub axes: Option<[[f64; 2]; 4]>,
+    /// Corner RMS (px), position (mm) and rotation (°) errors of the found marker.
+    pub errors: Option<(f64, f64, f64)>,
+    pub revision: u64,
+}
+
+impl Default for DetectState {
+    fn default() -> Self {
+        Self {
+            families: shipped_families().map(|f| (f.to_string(), true)).collect(),
+            design: None,
+            corner_threshold: GroupOptions::default().corner,
+            image: None,
+            result: None,
+            detector: None,
+            stale: false,
+            revision: 0,
+            scene: SceneSettings::default(),
+            scenes: Vec::new(),
+        }
+    }
+}
+
+impl DetectState {
+    fn chosen(&self) -> Vec<String> {
+        let mut chosen: Vec<String> = self
+            .families
+            .iter()
+            .filter(|(_, on)| *on)
+            .map(|(f, _)| f.clone())
+            .collect();
+        if let Some((family, model, true)) = &self.design {
+            chosen.push(format!("{} ({})", family.name(), model.display()));
+        }
+        chosen
     }
 
-    /// The last detection: what was found and how long it took.
-    pub struct DetectResult {
-        pub found: Vec<Found>,
-        /// Per marker found: its pose's axes in the image (origin, x, y, z ends), when posed.
-        pub axes: Vec<Option<[[f64; 2]; 4]>>,
-        pub timings: Timings,
-        pub time_ms: f64,
-    }
-
-    pub struct DetectState {
-        /// Families with shipped weights and whether to detect them.
-        pub families: Vec<(String, bool)>,
-        /// The design being edited, when a model trained in the Train panel is attached to it:
-        /// its family, model file and whether to detect it.
-        pub design: Option<(tagsmith::family::Family, std::path::PathBuf, bool)>,
-        pub corner_threshold: f32,
-        pub image: Option<LoadedImage>,
-        pub result: Option<DetectResult>,
-        /// The loaded detector and the families it was built for.
-        detector: Option<(Vec<String>, Detector)>,
-        stale: bool,
-        revision: u64,
-        pub scene: SceneSettings,
-        /// The test scenes of the last render, one per compared family.
-        pub scenes: Vec<TestScene>,
-    }
-
-    /// The synthetic test scene's conditions, the same for both families compared.
-    #[derive(Debug, Clone, PartialEq)]
-    pub struct SceneSettings {
-        pub first: String,
-        /// Empty: no second family.
-        pub second: String,
-        pub distance_m: f64,
-        pub angle_deg: f64,
-        pub noise: f32,
-        pub blur: f32,
-        /// Gray level of the marker's white (lighting).
-        pub white: f32,
-        pub seed: u64,
-    }
-
-    impl Default for SceneSettings {
-        fn default() -> Self {
-            let mut shipped = shipped_families();
-            Self {
-                first: shipped.next().unwrap_or_default().to_string(),
-                second: shipped.next().unwrap_or_default().to_string(),
-                distance_m: 0.5,
-                angle_deg: 30.0,
-                noise: 4.0,
-                blur: 0.6,
-                white: 220.0,
-                seed: 1,
+    /// Follows the designer: its family is offered when a trained model is attached to it.
+    fn sync_design(&mut self, studio_design: Option<&super::design::Design>) {
+        let attached = studio_design.and_then(|d| {
+            let family = d.validation().as_ref().ok()?;
+            let model = super::train::attached_model(d.path.as_ref()?);
+            model.exists().then_some((family, model))
+        });
+        match (attached, &mut self.design) {
+            (Some((f, m)), Some((family, model, _)))
+                if f.name() == family.name() && m == *model => {}
+            (Some((f, m)), _) => {
+                // Cloned only when the design or its model changed, not every frame.
+                self.design = Some((f.clone(), m, true));
+                self.stale = true;
             }
+            (None, Some(_)) => {
+                self.design = None;
+                self.stale = true;
+            }
+            (None, None) => {}
         }
     }
 
-    /// One family's test scene: the image, its truth and how the detector did on it.
-    pub struct TestScene {
-        pub family: String,
-        pub image: GrayImage,
-        pub truth: tagsmith::synth::MarkerTruth,
-        pub found: Option<Found>,
-        pub axes: Option<[[f64; 2]; 4]>,
-        /// Corner RMS (px), position (mm) and rotation (°) errors of the found marker.
-        pub errors: Option<(f64, f64, f64)>,
-        pub revision: u64,
-    }
-
-    impl Default for DetectState {
-        fn default() -> Self {
-            Self {
-                families: shipped_families().map(|f| (f.to_string(), true)).collect(),
-                design: None,
-                corner_threshold: GroupOptions::default().corner,
-                image: None,
-                result: None,
-                detector: None,
-                stale: false,
-                revision: 0,
-                scene: SceneSettings::default(),
-                scenes: Vec::new(),
-            }
+    /// Builds the detector for the ticked families when they changed since the last build.
+    fn build_detector(&mut self) -> Result<(), String> {
+        let chosen = self.chosen();
+        if chosen.is_empty() {
+            return Err("choose at least one family to detect".into());
         }
-    }
-
-    impl DetectState {
-        fn chosen(&self) -> Vec<String> {
-            let mut chosen: Vec<String> = self
-                .families
-                .iter()
-                .filter(|(_, on)| *on)
-                .map(|(f, _)| f.clone())
-                .collect();
+        if self.detector.as_ref().is_none_or(|(f, _)| *f != chosen) {
+            let mut readers = Vec::new();
+            for (name, _) in self.families.iter().filter(|(_, on)| *on) {
+                let family = match tagsmith::builtin::get(name) {
+                    Some(Ok(f)) => f,
+                    Some(Err(e)) => return Err(e.to_string()),
+                    None => return Err(format!("{name} is not a built-in family")),
+                };
+                readers.push(FamilyReader::shipped(family).map_err(|e| e.to_string())?);
+            }
             if let Some((family, model, true)) = &self.design {
-                chosen.push(format!("{} ({})", family.name(), model.display()));
+                let stage2 = Stage2::load(model, family).map_err(|e| e.to_string())?;
+                readers.push(FamilyReader::new(family.clone(), stage2));
             }
-            chosen
+            let stage1 = Stage1::shipped().map_err(|e| e.to_string())?;
+            let detector = Detector::new(stage1, readers).map_err(|e| e.to_string())?;
+            self.detector = Some((chosen, detector));
         }
+        let (_, detector) = self.detector.as_mut().expect("built above");
+        detector.options.propose.group.corner = self.corner_threshold;
+        Ok(())
+    }
 
-        /// Follows the designer: its family is offered when a trained model is attached to it.
-        fn sync_design(&mut self, studio_design: Option<&super::super::design::Design>) {
-            let attached = studio_design.and_then(|d| {
-                let family = d.validation().as_ref().ok()?;
-                let model = super::super::train::attached_model(d.path.as_ref()?);
-                model.exists().then_some((family, model))
-            });
-            match (attached, &mut self.design) {
-                (Some((f, m)), Some((family, model, _)))
-                    if f.name() == family.name() && m == *model => {}
-                (Some((f, m)), _) => {
-                    // Cloned only when the design or its model changed, not every frame.
-                    self.design = Some((f.clone(), m, true));
+    /// Runs the detector on the image if anything changed since the last run.
+    pub fn refresh(&mut self) -> Result<(), String> {
+        if !self.stale || self.image.is_none() {
+            return Ok(());
+        }
+        self.stale = false;
+        if let Err(e) = self.build_detector() {
+            self.result = None;
+            return Err(e);
+        }
+        let (Some(image), Some((_, detector))) = (&self.image, &self.detector) else {
+            return Ok(());
+        };
+        let clock = tagsmith::io::Stopwatch::start();
+        let (found, timings) = Detector::detect(detector, &image.gray);
+        let time_ms = clock.ms();
+        // The browser check (scripts/web-detect.sh) reads this line from the console.
+        log::info!(
+            "detected {} marker(s) in {} ({}×{}) in {time_ms:.1} ms (stage 1 {:.1} ms, stage 2 {:.1} ms)",
+            found.len(),
+            image.name,
+            image.gray.width,
+            image.gray.height,
+            timings.stage1_ms,
+            timings.stage2_ms
+        );
+        let camera = detector.camera_for(&image.gray);
+        let axes = found
+            .iter()
+            .map(|f| pose_axes(detector, f, camera.as_ref()))
+            .collect();
+        self.result = Some(DetectResult {
+            found,
+            axes,
+            timings,
+            time_ms,
+        });
+        Ok(())
+    }
+
+    /// Renders the test scene for each compared family and detects on it with the same
+    /// detector (the families ticked above), with the scene's own camera.
+    pub fn render_scenes(&mut self) -> Result<(), String> {
+        use tagsmith::synth::{augment::AugmentRanges, synthesize, Mode, SynthConfig};
+        let settings = self.scene.clone();
+        let names: Vec<String> = [settings.first.clone(), settings.second.clone()]
+            .into_iter()
+            .filter(|n| !n.is_empty())
+            .collect();
+        // The detector is built for the ticked families; the compared ones must be among them.
+        for name in &names {
+            if let Some(entry) = self.families.iter_mut().find(|(f, _)| f == name) {
+                if !entry.1 {
+                    entry.1 = true;
                     self.stale = true;
                 }
-                (None, Some(_)) => {
-                    self.design = None;
-                    self.stale = true;
-                }
-                (None, None) => {}
             }
         }
-
-        /// Builds the detector for the ticked families when they changed since the last build.
-        fn build_detector(&mut self) -> Result<(), String> {
-            let chosen = self.chosen();
-            if chosen.is_empty() {
-                return Err("choose at least one family to detect".into());
-            }
-            if self.detector.as_ref().is_none_or(|(f, _)| *f != chosen) {
-                let mut readers = Vec::new();
-                for (name, _) in self.families.iter().filter(|(_, on)| *on) {
-                    let family = match tagsmith::builtin::get(name) {
-                        Some(Ok(f)) => f,
-                        Some(Err(e)) => return Err(e.to_string()),
-                        None => return Err(format!("{name} is not a built-in family")),
-                    };
-                    readers.push(FamilyReader::shipped(family).map_err(|e| e.to_string())?);
-                }
-                if let Some((family, model, true)) = &self.design {
-                    let stage2 = Stage2::load(model, family).map_err(|e| e.to_string())?;
-                    readers.push(FamilyReader::new(family.clone(), stage2));
-                }
-                let stage1 = Stage1::shipped().map_err(|e| e.to_string())?;
-                let detector = Detector::new(stage1, readers).map_err(|e| e.to_string())?;
-                self.detector = Some((chosen, detector));
-            }
-            let (_, detector) = self.detector.as_mut().expect("built above");
-            detector.options.propose.group.corner = self.corner_threshold;
-            Ok(())
-        }
-
-        /// Runs the detector on the image if anything changed since the last run.
-        pub fn refresh(&mut self) -> Result<(), String> {
-            if !self.stale || self.image.is_none() {
-                return Ok(());
-            }
-            self.stale = false;
-            if let Err(e) = self.build_detector() {
-                self.result = None;
-                return Err(e);
-            }
-            let (Some(image), Some((_, detector))) = (&self.image, &self.detector) else {
-                return Ok(());
+        self.build_detector()?;
+        let (_, detector) = self.detector.as_mut().expect("built above");
+        self.scenes.clear();
+        for name in names {
+            let family = match tagsmith::builtin::get(&name) {
+                Some(Ok(f)) => f,
+                _ => match &self.design {
+                    Some((f, _, _)) if f.name() == name => f.clone(),
+                    _ => return Err(format!("{name}: no such family")),
+                },
             };
-            let clock = tagsmith::io::Stopwatch::start();
-            let (found, timings) = Detector::detect(detector, &image.gray);
-            let time_ms = clock.ms();
-            // The browser check (scripts/web-detect.sh) reads this line from the console.
-            log::info!(
-                "detected {} marker(s) in {} ({}×{}) in {time_ms:.1} ms (stage 1 {:.1} ms, stage 2 {:.1} ms)",
-                found.len(),
-                image.name,
-                image.gray.width,
-                image.gray.height,
-                timings.stage1_ms,
-                timings.stage2_ms
-            );
-            let camera = detector.camera.or_else(|| guess_camera(&image.gray));
+            let mut config = SynthConfig::new(Mode::Camera);
+            config.width = 640;
+            config.height = 480;
+            config.fov_deg = 70.0;
+            config.markers = [1, 1];
+            let side = family.spec().print.marker_side_mm / 1000.0;
+            config.side_m = [side, side];
+            config.distance_m = [settings.distance_m; 2];
+            config.view_angle_deg = [settings.angle_deg; 2];
+            let mut augment = AugmentRanges::none();
+            augment.marker_black = [25.0, 25.0];
+            augment.marker_white = [settings.white; 2];
+            augment.noise_sigma = [settings.noise; 2];
+            augment.blur_sigma = [settings.blur; 2];
+            config.augment = augment;
+            let sample = synthesize(&family, &config, settings.seed).map_err(|e| e.to_string())?;
+            let Some(truth) = sample.truth.markers.first().cloned() else {
+                continue;
+            };
+            detector.camera = sample.truth.camera;
+            let (found, _) = Detector::detect(detector, &sample.image);
+            let found = found
+                .into_iter()
+                .find(|f| f.family == family.name() && f.marker.id == truth.id);
             let axes = found
-                .iter()
-                .map(|f| pose_axes(detector, f, camera.as_ref()))
-                .collect();
-            self.result = Some(DetectResult {
+                .as_ref()
+                .and_then(|f| pose_axes(detector, f, sample.truth.camera.as_ref()));
+            detector.camera = None;
+            let errors = found.as_ref().map(|f| scene_errors(f, &truth));
+            self.revision += 1;
+            self.scenes.push(TestScene {
+                family: family.name().to_string(),
+                image: sample.image,
+                truth,
                 found,
                 axes,
-                timings,
-                time_ms,
-            });
-            Ok(())
-        }
-
-        /// Renders the test scene for each compared family and detects on it with the same
-        /// detector (the families ticked above), with the scene's own camera.
-        pub fn render_scenes(&mut self) -> Result<(), String> {
-            use tagsmith::synth::{augment::AugmentRanges, synthesize, Mode, SynthConfig};
-            let settings = self.scene.clone();
-            let names: Vec<String> = [settings.first.clone(), settings.second.clone()]
-                .into_iter()
-                .filter(|n| !n.is_empty())
-                .collect();
-            // The detector is built for the ticked families; the compared ones must be among them.
-            for name in &names {
-                if let Some(entry) = self.families.iter_mut().find(|(f, _)| f == name) {
-                    if !entry.1 {
-                        entry.1 = true;
-                        self.stale = true;
-                    }
-                }
-            }
-            self.build_detector()?;
-            let (_, detector) = self.detector.as_mut().expect("built above");
-            self.scenes.clear();
-            for name in names {
-                let family = match tagsmith::builtin::get(&name) {
-                    Some(Ok(f)) => f,
-                    _ => match &self.design {
-                        Some((f, _, _)) if f.name() == name => f.clone(),
-                        _ => return Err(format!("{name}: no such family")),
-                    },
-                };
-                let mut config = SynthConfig::new(Mode::Camera);
-                config.width = 640;
-                config.height = 480;
-                config.fov_deg = 70.0;
-                config.markers = [1, 1];
-                let side = family.spec().print.marker_side_mm / 1000.0;
-                config.side_m = [side, side];
-                config.distance_m = [settings.distance_m; 2];
-                config.view_angle_deg = [settings.angle_deg; 2];
-                let mut augment = AugmentRanges::none();
-                augment.marker_black = [25.0, 25.0];
-                augment.marker_white = [settings.white; 2];
-                augment.noise_sigma = [settings.noise; 2];
-                augment.blur_sigma = [settings.blur; 2];
-                config.augment = augment;
-                let sample =
-                    synthesize(&family, &config, settings.seed).map_err(|e| e.to_string())?;
-                let Some(truth) = sample.truth.markers.first().cloned() else {
-                    continue;
-                };
-                detector.camera = sample.truth.camera;
-                let (found, _) = Detector::detect(detector, &sample.image);
-                let found = found
-                    .into_iter()
-                    .find(|f| f.family == family.name() && f.marker.id == truth.id);
-                let axes = found
-                    .as_ref()
-                    .and_then(|f| pose_axes(detector, f, sample.truth.camera.as_ref()));
-                detector.camera = None;
-                let errors = found.as_ref().map(|f| scene_errors(f, &truth));
-                self.revision += 1;
-                self.scenes.push(TestScene {
-                    family: family.name().to_string(),
-                    image: sample.image,
-                    truth,
-                    found,
-                    axes,
-                    errors,
-                    revision: self.revision,
-                });
-            }
-            Ok(())
-        }
-
-        /// The detections in the CLI's `--json` format.
-        pub fn detections_file(&self) -> Option<DetectionsFile> {
-            let (image, result) = (self.image.as_ref()?, self.result.as_ref()?);
-            let (_, detector) = self.detector.as_ref()?;
-            Some(DetectionsFile {
-                detector: BenchDetector::name(detector),
-                images: vec![ImageDetections {
-                    file: image.name.clone(),
-                    time_ms: result.time_ms,
-                    detections: result.found.iter().map(Found::detection).collect(),
-                }],
-            })
-        }
-
-        fn set_image(&mut self, name: String, gray: GrayImage) {
-            self.revision += 1;
-            self.image = Some(LoadedImage {
-                name,
-                gray,
+                errors,
                 revision: self.revision,
             });
-            self.result = None;
-            self.stale = true;
         }
+        Ok(())
     }
 
-    /// The marker's axes, as long as its side, as the pose puts them in the image.
-    fn pose_axes(
-        detector: &Detector,
-        f: &Found,
-        camera: Option<&tagsmith::geometry::Camera>,
-    ) -> Option<[[f64; 2]; 4]> {
-        let pose = f.marker.pose.as_ref()?;
-        let side = detector
-            .readers
-            .iter()
-            .find(|r| r.family.name() == f.family)?
-            .side_m;
-        Some(tagsmith::pose::axes_in_image(&pose.pose, camera?, side))
+    /// The detections in the CLI's `--json` format.
+    pub fn detections_file(&self) -> Option<DetectionsFile> {
+        let (image, result) = (self.image.as_ref()?, self.result.as_ref()?);
+        let (_, detector) = self.detector.as_ref()?;
+        Some(DetectionsFile {
+            detector: BenchDetector::name(detector),
+            images: vec![ImageDetections {
+                file: image.name.clone(),
+                time_ms: result.time_ms,
+                detections: result.found.iter().map(Found::detection).collect(),
+            }],
+        })
     }
 
-    fn scene_errors(f: &Found, truth: &tagsmith::synth::MarkerTruth) -> (f64, f64, f64) {
-        let corners = f
-            .marker
-            .corners
-            .iter()
-            .zip(&truth.roi)
-            .map(|(a, b)| (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2))
-            .sum::<f64>()
-            / 4.0;
-        let (mut position, mut rotation) = (f64::NAN, f64::NAN);
-        if let (Some(p), Some(t)) = (&f.marker.pose, &truth.pose) {
-            let want = tagsmith::geometry::Pose::from(&t.pose);
-            position = 1000.0 * (p.pose.translation - want.translation).norm();
-            rotation = p.pose.rotation_error_deg(&want);
+    fn set_image(&mut self, name: String, gray: GrayImage) {
+        self.revision += 1;
+        self.image = Some(LoadedImage {
+            name,
+            gray,
+            revision: self.revision,
+        });
+        self.result = None;
+        self.stale = true;
+    }
+}
+
+/// The marker's axes, as long as its side, as the pose puts them in the image.
+fn pose_axes(
+    detector: &Detector,
+    f: &Found,
+    camera: Option<&tagsmith::geometry::Camera>,
+) -> Option<[[f64; 2]; 4]> {
+    let pose = f.marker.pose.as_ref()?;
+    let side = detector
+        .readers
+        .iter()
+        .find(|r| r.family.name() == f.family)?
+        .side_m;
+    Some(tagsmith::pose::axes_in_image(&pose.pose, camera?, side))
+}
+
+fn scene_errors(f: &Found, truth: &tagsmith::synth::MarkerTruth) -> (f64, f64, f64) {
+    let corners = f
+        .marker
+        .corners
+        .iter()
+        .zip(&truth.roi)
+        .map(|(a, b)| (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2))
+        .sum::<f64>()
+        / 4.0;
+    let (mut position, mut rotation) = (f64::NAN, f64::NAN);
+    if let (Some(p), Some(t)) = (&f.marker.pose, &truth.pose) {
+        let want = tagsmith::geometry::Pose::from(&t.pose);
+        position = 1000.0 * (p.pose.translation - want.translation).norm();
+        rotation = p.pose.rotation_error_deg(&want);
+    }
+    (corners.sqrt(), position, rotation)
+}
+
+/// An image file opened or dropped: decoded (with the CLI's size limits) and detected on.
+pub fn open_image(studio: &mut Studio, file: OpenedFile) {
+    match tagsmith::image::decode(&file.bytes, &Default::default()) {
+        Ok(gray) => {
+            studio.detect.set_image(file.name.clone(), gray);
+            studio.panel = super::Panel::Detect;
+            studio.info(format!("opened {}", file.name));
         }
-        (corners.sqrt(), position, rotation)
+        Err(e) => studio.error(format!("{}: {e}", file.name)),
     }
+}
 
-    /// An image file opened or dropped: decoded (with the CLI's size limits) and detected on.
-    pub fn open_image(studio: &mut Studio, file: OpenedFile) {
-        match tagsmith::image::decode(&file.bytes, &Default::default()) {
-            Ok(gray) => {
-                studio.detect.set_image(file.name.clone(), gray);
-                studio.panel = super::super::Panel::Detect;
-                studio.info(format!("opened {}", file.name));
-            }
-            Err(e) => studio.error(format!("{}: {e}", file.name)),
-        }
-    }
-
-    /// Pasted text naming an image file (a path, or a `file://` address per line, as file
-    /// managers copy files): the first one is opened. Other text is ignored.
-    pub fn open_pasted(studio: &mut Studio, text: &str) {
-        let Some(path) = text
-            .lines()
-            .map(|l| l.trim())
-            .map(|l| l.strip_prefix("file://").unwrap_or(l))
-            .find(|l| super::super::files::is_image_name(l))
-        else {
-            return;
-        };
-        match std::fs::read(path) {
-            Ok(bytes) => open_image(
-                studio,
-                OpenedFile {
-                    purpose: Purpose::Image,
-                    name: path.to_string(),
-                    path: Some(path.into()),
-                    bytes,
-                },
-            ),
-            Err(e) => studio.error(format!("{path}: cannot read the pasted image: {e}")),
-        }
-    }
-
-    /// Opens one of [`SAMPLES`] by file name; `false` when there is no such sample.
-    pub fn open_sample(studio: &mut Studio, name: &str) -> bool {
-        let Some((name, bytes)) = SAMPLES.iter().find(|(n, _)| *n == name) else {
-            return false;
-        };
-        open_image(
+/// Pasted text naming an image file (a path, or a `file://` address per line, as file
+/// managers copy files): the first one is opened. Other text is ignored.
+pub fn open_pasted(studio: &mut Studio, text: &str) {
+    let Some(path) = text
+        .lines()
+        .map(|l| l.trim())
+        .map(|l| l.strip_prefix("file://").unwrap_or(l))
+        .find(|l| super::files::is_image_name(l))
+    else {
+        return;
+    };
+    match std::fs::read(path) {
+        Ok(bytes) => open_image(
             studio,
             OpenedFile {
                 purpose: Purpose::Image,
-                name: name.to_string(),
-                path: None,
-                bytes: bytes.to_vec(),
+                name: path.to_string(),
+                path: Some(path.into()),
+                bytes,
             },
-        );
-        true
+        ),
+        Err(e) => studio.error(format!("{path}: cannot read the pasted image: {e}")),
     }
+}
 
-    pub fn show(studio: &mut Studio, ui: &mut egui::Ui, ctx: &egui::Context) {
-        ui.horizontal_wrapped(|ui| {
-            if ui.button("Open image…").clicked() {
-                studio.files.request_open(Purpose::Image);
+/// Opens one of [`SAMPLES`] by file name; `false` when there is no such sample.
+pub fn open_sample(studio: &mut Studio, name: &str) -> bool {
+    let Some((name, bytes)) = SAMPLES.iter().find(|(n, _)| *n == name) else {
+        return false;
+    };
+    open_image(
+        studio,
+        OpenedFile {
+            purpose: Purpose::Image,
+            name: name.to_string(),
+            path: None,
+            bytes: bytes.to_vec(),
+        },
+    );
+    true
+}
+
+pub fn show(studio: &mut Studio, ui: &mut egui::Ui, ctx: &egui::Context) {
+    ui.horizontal_wrapped(|ui| {
+        if ui.button("Open image…").clicked() {
+            studio.files.request_open(Purpose::Image);
+        }
+        ui.label("Samples:");
+        for (name, _) in SAMPLES {
+            if ui.button(*name).clicked() {
+                open_sample(studio, name);
             }
-            ui.label("Samples:");
-            for (name, _) in SAMPLES {
-                if ui.button(*name).clicked() {
-                    open_sample(studio, name);
-                }
-            }
-        });
-        studio.detect.sync_design(studio.design.as_ref());
-        let state = &mut studio.detect;
-        ui.horizontal_wrapped(|ui| {
-            ui.label("Families:");
-            for (name, on) in &mut state.families {
-                if ui.checkbox(on, name.as_str()).changed() {
-                    state.stale = true;
-                }
-            }
-            if let Some((family, _, on)) = &mut state.design {
-                let label = format!("{} (the design's trained model)", family.name());
-                if ui.checkbox(on, label).changed() {
-                    state.stale = true;
-                }
-            }
-            ui.separator();
-            let slider = egui::Slider::new(&mut state.corner_threshold, 0.05..=0.95)
-                .text("corner threshold");
-            if ui
-                .add(slider)
-                .on_hover_text("stage 1's corner confidence: lower finds more, costs more time")
-                .changed()
-            {
+        }
+    });
+    studio.detect.sync_design(studio.design.as_ref());
+    let state = &mut studio.detect;
+    ui.horizontal_wrapped(|ui| {
+        ui.label("Families:");
+        for (name, on) in &mut state.families {
+            if ui.checkbox(on, name.as_str()).changed() {
                 state.stale = true;
             }
-        });
-        if let Err(e) = studio.detect.refresh() {
-            studio.error(e);
         }
-        egui::CollapsingHeader::new("Test scene")
-            .default_open(false)
-            .show(ui, |ui| test_scene(studio, ui, ctx));
-        let state = &studio.detect;
-        let (Some(image), Some(result)) = (&state.image, &state.result) else {
-            ui.label("Open an image, drop one on the window, or pick a sample.");
-            return;
-        };
-        ui.horizontal(|ui| {
-            ui.label(format!(
-                "{}: {} marker(s) in {:.0} ms (stage 1 {:.0} ms, {} ROI(s); stage 2 {:.0} ms)",
-                image.name,
-                result.found.len(),
-                result.time_ms,
-                result.timings.stage1_ms,
-                result.timings.proposals,
-                result.timings.stage2_ms
-            ));
-        });
-        let mut save_json = false;
-        let mut save_png = false;
-        ui.horizontal(|ui| {
-            save_json = ui.button("Save detections (JSON)…").clicked();
-            save_png = ui.button("Save annotated image (PNG)…").clicked();
-        });
-        table(ui, &result.found);
-        let tex = studio
-            .textures
-            .get_or_make(ctx, "detect-image", image.revision, || {
-                Ok(gray_image(&image.gray))
-            });
-        if let Ok(tex) = tex {
-            let size = Vec2::new(image.gray.width as f32, image.gray.height as f32);
-            let scale = (ui.available_width() / size.x).min(1.5);
-            let response = ui.image((tex.id(), size * scale));
-            draw_overlays(ui, response.rect, scale, &result.found, &result.axes);
+        if let Some((family, _, on)) = &mut state.design {
+            let label = format!("{} (the design's trained model)", family.name());
+            if ui.checkbox(on, label).changed() {
+                state.stale = true;
+            }
         }
-        if save_json {
-            save_detections(studio);
+        ui.separator();
+        let slider =
+            egui::Slider::new(&mut state.corner_threshold, 0.05..=0.95).text("corner threshold");
+        if ui
+            .add(slider)
+            .on_hover_text("stage 1's corner confidence: lower finds more, costs more time")
+            .changed()
+        {
+            state.stale = true;
         }
-        if save_png {
-            save_annotated(studio);
-        }
+    });
+    if let Err(e) = studio.detect.refresh() {
+        studio.error(e);
     }
+    egui::CollapsingHeader::new("Test scene")
+        .default_open(false)
+        .show(ui, |ui| test_scene(studio, ui, ctx));
+    let state = &studio.detect;
+    let (Some(image), Some(result)) = (&state.image, &state.result) else {
+        ui.label("Open an image, drop one on the window, or pick a sample.");
+        return;
+    };
+    ui.horizontal(|ui| {
+        ui.label(format!(
+            "{}: {} marker(s) in {:.0} ms (stage 1 {:.0} ms, {} ROI(s); stage 2 {:.0} ms)",
+            image.name,
+            result.found.len(),
+            result.time_ms,
+            result.timings.stage1_ms,
+            result.timings.proposals,
+            result.timings.stage2_ms
+        ));
+    });
+    let mut save_json = false;
+    let mut save_png = false;
+    ui.horizontal(|ui| {
+        save_json = ui.button("Save detections (JSON)…").clicked();
+        save_png = ui.button("Save annotated image (PNG)…").clicked();
+    });
+    table(ui, &result.found);
+    let tex = studio
+        .textures
+        .get_or_make(ctx, "detect-image", image.revision, || {
+            Ok(gray_image(&image.gray))
+        });
+    if let Ok(tex) = tex {
+        let size = Vec2::new(image.gray.width as f32, image.gray.height as f32);
+        let scale = (ui.available_width() / size.x).min(1.5);
+        let response = ui.image((tex.id(), size * scale));
+        draw_overlays(ui, response.rect, scale, &result.found, &result.axes);
+    }
+    if save_json {
+        save_detections(studio);
+    }
+    if save_png {
+        save_annotated(studio);
+    }
+}
 
-    /// A synthetic scene per compared family under the same conditions, detected, with the errors
-    /// against its truth: where a user sees which design holds up in their conditions.
-    fn test_scene(studio: &mut Studio, ui: &mut egui::Ui, ctx: &egui::Context) {
-        let state = &mut studio.detect;
-        let mut names: Vec<String> = state.families.iter().map(|(f, _)| f.clone()).collect();
-        if let Some((f, _, _)) = &state.design {
-            names.push(f.name().to_string());
-        }
-        let before = state.scene.clone();
-        let s = &mut state.scene;
-        ui.horizontal(|ui| {
-            for (label, value, optional) in [
-                ("first family", &mut s.first, false),
-                ("second family", &mut s.second, true),
-            ] {
-                egui::ComboBox::from_label(label)
-                    .selected_text(if value.is_empty() {
-                        "none".to_string()
-                    } else {
-                        value.clone()
-                    })
-                    .show_ui(ui, |ui| {
-                        if optional {
-                            ui.selectable_value(value, String::new(), "none");
-                        }
-                        for n in &names {
-                            ui.selectable_value(value, n.clone(), n.as_str());
-                        }
-                    });
-            }
-        });
-        ui.horizontal_wrapped(|ui| {
-            ui.add(egui::Slider::new(&mut s.distance_m, 0.15..=2.0).text("distance m"));
-            ui.add(egui::Slider::new(&mut s.angle_deg, 0.0..=75.0).text("angle °"));
-            ui.add(egui::Slider::new(&mut s.noise, 0.0..=120.0).text("noise σ"));
-            ui.add(egui::Slider::new(&mut s.blur, 0.0..=4.0).text("blur σ px"));
-            ui.add(egui::Slider::new(&mut s.white, 60.0..=255.0).text("white level"));
-            if ui.button("New pose").clicked() {
-                s.seed += 1;
-            }
-        });
-        let changed = *s != before;
-        if changed || (state.scenes.is_empty() && ui.button("Render test scene").clicked()) {
-            if let Err(e) = state.render_scenes() {
-                studio.error(e);
-                return;
-            }
-        }
-        let state = &studio.detect;
-        ui.horizontal(|ui| {
-            for scene in &state.scenes {
-                ui.vertical(|ui| {
-                    ui.strong(scene.family.as_str());
-                    match (&scene.found, scene.errors) {
-                        (Some(f), Some((c, p, r))) => ui.label(format!(
-                            "found #{}: corners {c:.2} px RMS, position {p:.1} mm, rotation {r:.2}°",
-                            f.marker.id
-                        )),
-                        _ => ui.label(format!("#{} not found", scene.truth.id)),
-                    };
-                    let key = format!("test-scene-{}", scene.family);
-                    let tex = studio.textures.get_or_make(ctx, &key, scene.revision, || {
-                        Ok(gray_image(&scene.image))
-                    });
-                    if let Ok(tex) = tex {
-                        let size = Vec2::new(scene.image.width as f32, scene.image.height as f32);
-                        let scale = 0.6;
-                        let response = ui.image((tex.id(), size * scale));
-                        draw_overlays(
-                            ui,
-                            response.rect,
-                            scale,
-                            scene.found.as_slice(),
-                            std::slice::from_ref(&scene.axes),
-                        );
+/// A synthetic scene per compared family under the same conditions, detected, with the errors
+/// against its truth: where a user sees which design holds up in their conditions.
+fn test_scene(studio: &mut Studio, ui: &mut egui::Ui, ctx: &egui::Context) {
+    let state = &mut studio.detect;
+    let mut names: Vec<String> = state.families.iter().map(|(f, _)| f.clone()).collect();
+    if let Some((f, _, _)) = &state.design {
+        names.push(f.name().to_string());
+    }
+    let before = state.scene.clone();
+    let s = &mut state.scene;
+    ui.horizontal(|ui| {
+        for (label, value, optional) in [
+            ("first family", &mut s.first, false),
+            ("second family", &mut s.second, true),
+        ] {
+            egui::ComboBox::from_label(label)
+                .selected_text(if value.is_empty() {
+                    "none".to_string()
+                } else {
+                    value.clone()
+                })
+                .show_ui(ui, |ui| {
+                    if optional {
+                        ui.selectable_value(value, String::new(), "none");
+                    }
+                    for n in &names {
+                        ui.selectable_value(value, n.clone(), n.as_str());
                     }
                 });
-            }
-        });
+        }
+    });
+    ui.horizontal_wrapped(|ui| {
+        ui.add(egui::Slider::new(&mut s.distance_m, 0.15..=2.0).text("distance m"));
+        ui.add(egui::Slider::new(&mut s.angle_deg, 0.0..=75.0).text("angle °"));
+        ui.add(egui::Slider::new(&mut s.noise, 0.0..=120.0).text("noise σ"));
+        ui.add(egui::Slider::new(&mut s.blur, 0.0..=4.0).text("blur σ px"));
+        ui.add(egui::Slider::new(&mut s.white, 60.0..=255.0).text("white level"));
+        if ui.button("New pose").clicked() {
+            s.seed += 1;
+        }
+    });
+    let changed = *s != before;
+    if changed || (state.scenes.is_empty() && ui.button("Render test scene").clicked()) {
+        if let Err(e) = state.render_scenes() {
+            studio.error(e);
+            return;
+        }
     }
-
-    fn table(ui: &mut egui::Ui, found: &[Found]) {
-        egui::Grid::new("detections")
-            .striped(true)
-            .num_columns(8)
-            .show(ui, |ui| {
-                for head in [
-                    "family",
-                    "ID",
-                    "corrected",
-                    "reprojection px",
-                    "distance mm",
-                    "position x, y, z mm",
-                    "tilt °",
-                    "refined",
-                ] {
-                    ui.strong(head);
+    let state = &studio.detect;
+    ui.horizontal(|ui| {
+        for scene in &state.scenes {
+            ui.vertical(|ui| {
+                ui.strong(scene.family.as_str());
+                match (&scene.found, scene.errors) {
+                    (Some(f), Some((c, p, r))) => ui.label(format!(
+                        "found #{}: corners {c:.2} px RMS, position {p:.1} mm, rotation {r:.2}°",
+                        f.marker.id
+                    )),
+                    _ => ui.label(format!("#{} not found", scene.truth.id)),
+                };
+                let key = format!("test-scene-{}", scene.family);
+                let tex = studio
+                    .textures
+                    .get_or_make(ctx, &key, scene.revision, || Ok(gray_image(&scene.image)));
+                if let Ok(tex) = tex {
+                    let size = Vec2::new(scene.image.width as f32, scene.image.height as f32);
+                    let scale = 0.6;
+                    let response = ui.image((tex.id(), size * scale));
+                    draw_overlays(
+                        ui,
+                        response.rect,
+                        scale,
+                        scene.found.as_slice(),
+                        std::slice::from_ref(&scene.axes),
+                    );
                 }
-                ui.end_row();
-                for f in found {
-                    let m = &f.marker;
-                    ui.label(f.family.as_str());
-                    ui.label(m.id.to_string());
-                    ui.label(m.corrected_errors.to_string());
-                    match &m.pose {
-                        Some(p) => {
-                            ui.label(format!("{:.2}", p.rms_px));
-                            let t = 1000.0 * p.pose.translation;
-                            ui.label(format!("{:.0}", t.norm()));
-                            ui.label(format!("{:.1}, {:.1}, {:.1}", t[0], t[1], t[2]));
-                            ui.label(format!("{:.1}", tilt_deg(&p.pose)));
-                        }
-                        None => {
-                            for _ in 0..4 {
-                                ui.label("–");
-                            }
+            });
+        }
+    });
+}
+
+fn table(ui: &mut egui::Ui, found: &[Found]) {
+    egui::Grid::new("detections")
+        .striped(true)
+        .num_columns(8)
+        .show(ui, |ui| {
+            for head in [
+                "family",
+                "ID",
+                "corrected",
+                "reprojection px",
+                "distance mm",
+                "position x, y, z mm",
+                "tilt °",
+                "refined",
+            ] {
+                ui.strong(head);
+            }
+            ui.end_row();
+            for f in found {
+                let m = &f.marker;
+                ui.label(f.family.as_str());
+                ui.label(m.id.to_string());
+                ui.label(m.corrected_errors.to_string());
+                match &m.pose {
+                    Some(p) => {
+                        ui.label(format!("{:.2}", p.rms_px));
+                        let t = 1000.0 * p.pose.translation;
+                        ui.label(format!("{:.0}", t.norm()));
+                        ui.label(format!("{:.1}, {:.1}, {:.1}", t[0], t[1], t[2]));
+                        ui.label(format!("{:.1}", tilt_deg(&p.pose)));
+                    }
+                    None => {
+                        for _ in 0..4 {
+                            ui.label("–");
                         }
                     }
-                    let refined = m.refinement.as_ref().is_some_and(|r| r.refined);
-                    ui.label(if refined { "yes" } else { "no" });
-                    ui.end_row();
                 }
-            });
-    }
-
-    /// The angle between the marker's face normal and the line of sight to it: 0° face-on.
-    fn tilt_deg(pose: &tagsmith::geometry::Pose) -> f64 {
-        // The marker's z axis in the camera frame is the rotation's third column.
-        let r = pose.rotation.matrix();
-        let t = pose.translation.normalize();
-        let cos = -(r[(0, 2)] * t[0] + r[(1, 2)] * t[1] + r[(2, 2)] * t[2]);
-        cos.clamp(-1.0, 1.0).acos().to_degrees()
-    }
-
-    fn draw_overlays(
-        ui: &egui::Ui,
-        rect: Rect,
-        scale: f32,
-        found: &[Found],
-        axes: &[Option<[[f64; 2]; 4]>],
-    ) {
-        let painter = ui.painter_at(rect);
-        let at = |p: [f64; 2]| {
-            // Pixel centres at whole coordinates: pixel 0 covers [0, 1) on screen.
-            Pos2::new(
-                rect.min.x + (p[0] as f32 + 0.5) * scale,
-                rect.min.y + (p[1] as f32 + 0.5) * scale,
-            )
-        };
-        let outline = |q: &[[f64; 2]; 4], colour: Color32| {
-            let points: Vec<Pos2> = q.iter().map(|&p| at(p)).collect();
-            painter.add(egui::Shape::closed_line(points, Stroke::new(1.5, colour)));
-        };
-        for (i, f) in found.iter().enumerate() {
-            outline(&f.proposal.corners, Color32::from_rgb(255, 220, 0));
-            outline(&f.marker.corners, Color32::from_rgb(0, 200, 60));
-            painter.circle_stroke(at(f.marker.corners[0]), 5.0, Stroke::new(1.5, Color32::RED));
-            for k in &f.marker.keypoints {
-                painter.circle_filled(at([k.x, k.y]), 2.0, category_colour(k.category));
+                let refined = m.refinement.as_ref().is_some_and(|r| r.refined);
+                ui.label(if refined { "yes" } else { "no" });
+                ui.end_row();
             }
-            // The ID above the marker, clear of the axes drawn from its centre.
-            let top = f
-                .marker
-                .corners
-                .iter()
-                .copied()
-                .min_by(|a, b| a[1].total_cmp(&b[1]))
-                .unwrap_or_default();
-            if let Some(Some([origin, ends @ ..])) = axes.get(i) {
-                // x red, y green, z blue: the usual colours of a pose's axes.
-                let colours = [
-                    Color32::from_rgb(255, 40, 40),
-                    Color32::from_rgb(40, 230, 40),
-                    Color32::from_rgb(60, 120, 255),
-                ];
-                for (end, colour) in ends.iter().zip(colours) {
-                    painter.line_segment([at(*origin), at(*end)], Stroke::new(2.5, colour));
-                }
+        });
+}
+
+/// The angle between the marker's face normal and the line of sight to it: 0° face-on.
+fn tilt_deg(pose: &tagsmith::geometry::Pose) -> f64 {
+    // The marker's z axis in the camera frame is the rotation's third column.
+    let r = pose.rotation.matrix();
+    let t = pose.translation.normalize();
+    let cos = -(r[(0, 2)] * t[0] + r[(1, 2)] * t[1] + r[(2, 2)] * t[2]);
+    cos.clamp(-1.0, 1.0).acos().to_degrees()
+}
+
+fn draw_overlays(
+    ui: &egui::Ui,
+    rect: Rect,
+    scale: f32,
+    found: &[Found],
+    axes: &[Option<[[f64; 2]; 4]>],
+) {
+    let painter = ui.painter_at(rect);
+    let at = |p: [f64; 2]| {
+        // Pixel centres at whole coordinates: pixel 0 covers [0, 1) on screen.
+        Pos2::new(
+            rect.min.x + (p[0] as f32 + 0.5) * scale,
+            rect.min.y + (p[1] as f32 + 0.5) * scale,
+        )
+    };
+    let outline = |q: &[[f64; 2]; 4], colour: Color32| {
+        let points: Vec<Pos2> = q.iter().map(|&p| at(p)).collect();
+        painter.add(egui::Shape::closed_line(points, Stroke::new(1.5, colour)));
+    };
+    for (i, f) in found.iter().enumerate() {
+        outline(&f.proposal.corners, Color32::from_rgb(255, 220, 0));
+        outline(&f.marker.corners, Color32::from_rgb(0, 200, 60));
+        painter.circle_stroke(at(f.marker.corners[0]), 5.0, Stroke::new(1.5, Color32::RED));
+        for k in &f.marker.keypoints {
+            painter.circle_filled(at([k.x, k.y]), 2.0, category_colour(k.category));
+        }
+        // The ID above the marker, clear of the axes drawn from its centre.
+        let top = f
+            .marker
+            .corners
+            .iter()
+            .copied()
+            .min_by(|a, b| a[1].total_cmp(&b[1]))
+            .unwrap_or_default();
+        if let Some(Some([origin, ends @ ..])) = axes.get(i) {
+            // x red, y green, z blue: the usual colours of a pose's axes.
+            let colours = [
+                Color32::from_rgb(255, 40, 40),
+                Color32::from_rgb(40, 230, 40),
+                Color32::from_rgb(60, 120, 255),
+            ];
+            for (end, colour) in ends.iter().zip(colours) {
+                painter.line_segment([at(*origin), at(*end)], Stroke::new(2.5, colour));
             }
-            painter.text(
-                at(top) - Vec2::new(0.0, 4.0),
-                egui::Align2::CENTER_BOTTOM,
-                format!("#{}", f.marker.id),
-                egui::FontId::proportional(14.0),
-                Color32::from_rgb(255, 60, 200),
-            );
         }
+        painter.text(
+            at(top) - Vec2::new(0.0, 4.0),
+            egui::Align2::CENTER_BOTTOM,
+            format!("#{}", f.marker.id),
+            egui::FontId::proportional(14.0),
+            Color32::from_rgb(255, 60, 200),
+        );
     }
+}
 
-    fn stem(name: &str) -> String {
-        std::path::Path::new(name)
-            .file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_else(|| "image".into())
+fn stem(name: &str) -> String {
+    std::path::Path::new(name)
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "image".into())
+}
+
+fn save_detections(studio: &mut Studio) {
+    let Some(file) = studio.detect.detections_file() else {
+        return;
+    };
+    let name = format!("{}.detections.json", stem(&file.images[0].file));
+    let json = serde_json::to_string_pretty(&file).expect("detections serialise");
+    match studio.files.save_as(&name, json.as_bytes()) {
+        Ok(Some(place)) => studio.info(format!("saved {place}")),
+        Ok(None) => {}
+        Err(e) => studio.error(format!("not saved: {e}")),
     }
+}
 
-    fn save_detections(studio: &mut Studio) {
-        let Some(file) = studio.detect.detections_file() else {
-            return;
-        };
-        let name = format!("{}.detections.json", stem(&file.images[0].file));
-        let json = serde_json::to_string_pretty(&file).expect("detections serialise");
-        match studio.files.save_as(&name, json.as_bytes()) {
-            Ok(Some(place)) => studio.info(format!("saved {place}")),
-            Ok(None) => {}
-            Err(e) => studio.error(format!("not saved: {e}")),
-        }
+fn save_annotated(studio: &mut Studio) {
+    let state = &studio.detect;
+    let (Some(image), Some(result)) = (&state.image, &state.result) else {
+        return;
+    };
+    let overlays: Vec<Overlay> = result.found.iter().map(Found::overlay).collect();
+    let name = format!("{}.annotated.png", stem(&image.name));
+    let saved =
+        annotate_all(&image.gray, &overlays).and_then(|png| studio.files.save_as(&name, &png));
+    match saved {
+        Ok(Some(place)) => studio.info(format!("saved {place}")),
+        Ok(None) => {}
+        Err(e) => studio.error(format!("not saved: {e}")),
     }
+}
 
-    fn save_annotated(studio: &mut Studio) {
-        let state = &studio.detect;
-        let (Some(image), Some(result)) = (&state.image, &state.result) else {
-            return;
-        };
-        let overlays: Vec<Overlay> = result.found.iter().map(Found::overlay).collect();
-        let name = format!("{}.annotated.png", stem(&image.name));
-        let saved =
-            annotate_all(&image.gray, &overlays).and_then(|png| studio.files.save_as(&name, &png));
-        match saved {
-            Ok(Some(place)) => studio.info(format!("saved {place}")),
-            Ok(None) => {}
-            Err(e) => studio.error(format!("not saved: {e}")),
-        }
-    }
+#[cfg(test)]
+mod tests {
+    use super::tilt_deg;
+    use tagsmith::geometry::Pose;
 
-    #[cfg(test)]
-    mod tests {
-        use super::tilt_deg;
-        use tagsmith::geometry::Pose;
-
-        /// Face-on is 0° wherever the marker is in the view; turning it about its own x axis
-        /// tilts it by that angle; seen from the side of a line of sight, not the optical axis.
-        #[test]
-        fn tilt_is_the_angle_between_the_face_and_the_line_of_sight() {
-            let facing = Pose::from(&tagsmith::geometry::PoseJson {
-                rotation: [[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]],
-                translation_m: [0.0, 0.0, 1.0],
-            });
-            assert!(tilt_deg(&facing) < 1e-6);
-            let c = 30f64.to_radians().cos();
-            let s = 30f64.to_radians().sin();
-            // Turned 30° about the marker's x axis, after facing the camera.
-            let turned = Pose::from(&tagsmith::geometry::PoseJson {
-                rotation: [[1.0, 0.0, 0.0], [0.0, -c, s], [0.0, -s, -c]],
-                translation_m: [0.0, 0.0, 1.0],
-            });
-            assert!(
-                (tilt_deg(&turned) - 30.0).abs() < 1e-6,
-                "{}",
-                tilt_deg(&turned)
-            );
-        }
+    /// Face-on is 0° wherever the marker is in the view; turning it about its own x axis
+    /// tilts it by that angle; seen from the side of a line of sight, not the optical axis.
+    #[test]
+    fn tilt_is_the_angle_between_the_face_and_the_line_of_sight() {
+        let facing = Pose::from(&tagsmith::geometry::PoseJson {
+            rotation: [[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]],
+            translation_m: [0.0, 0.0, 1.0],
+        });
+        assert!(tilt_deg(&facing) < 1e-6);
+        let c = 30f64.to_radians().cos();
+        let s = 30f64.to_radians().sin();
+        // Turned 30° about the marker's x axis, after facing the camera.
+        let turned = Pose::from(&tagsmith::geometry::PoseJson {
+            rotation: [[1.0, 0.0, 0.0], [0.0, -c, s], [0.0, -s, -c]],
+            translation_m: [0.0, 0.0, 1.0],
+        });
+        assert!(
+            (tilt_deg(&turned) - 30.0).abs() < 1e-6,
+            "{}",
+            tilt_deg(&turned)
+        );
     }
 }

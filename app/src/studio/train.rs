@@ -235,6 +235,9 @@ mod desktop {
         pub outcome: Option<Result<String, String>>,
         /// The runs list while it is open.
         runs: Option<Vec<RunSummary>>,
+        /// The design's run folder as last read (its report is not re-read every frame); dropped
+        /// when a run starts or ends.
+        this_run: Option<RunSummary>,
         /// Start was pressed on a folder with an unfinished run: waiting for "Start over".
         pub confirm_start_over: bool,
         /// The UI's recent frame times (ms) while a run trains: their median is shown.
@@ -286,6 +289,7 @@ mod desktop {
             });
             self.outcome = Some(outcome.clone());
             self.runs = None;
+            self.this_run = None;
             Some(outcome)
         }
     }
@@ -432,6 +436,7 @@ mod desktop {
             })
         };
         studio.train.outcome = None;
+        studio.train.this_run = None;
         studio.train.running = Some(Running {
             job,
             live,
@@ -568,7 +573,10 @@ mod desktop {
         let can_start = blocker.is_none() && !running;
         let out = (!family_name.is_empty())
             .then(|| run_folder(studio, &family_name, studio.train.settings.stage));
-        let this_run = out.clone().map(RunSummary::read);
+        if studio.train.this_run.as_ref().map(|r| &r.folder) != out.as_ref() {
+            studio.train.this_run = out.clone().map(RunSummary::read);
+        }
+        let this_run = studio.train.this_run.clone();
         let resumable = this_run.as_ref().is_some_and(|r| r.checkpoint);
         // After a quit or a crash mid-run: say so, and offer to carry on.
         if let Some(run) = this_run.as_ref().filter(|r| r.unfinished() && !running) {
@@ -694,27 +702,22 @@ mod desktop {
                 });
         });
         if let Some(pictures) = &live.pictures {
-            picture_row(
-                ui,
-                ctx,
-                studio,
-                &format!("Training samples with their truth (step {})", pictures.step),
-                "train-sample",
-                pictures.step,
-                &pictures.samples,
-            );
-            picture_row(
-                ui,
-                ctx,
-                studio,
-                &format!(
-                    "Validation: what the network finds (step {})",
-                    pictures.step
+            let rows = [
+                (
+                    "Training samples with their truth",
+                    "train-sample",
+                    &pictures.samples,
                 ),
-                "train-prediction",
-                pictures.step,
-                &pictures.predictions,
-            );
+                (
+                    "Validation: what the network finds",
+                    "train-prediction",
+                    &pictures.predictions,
+                ),
+            ];
+            for (title, key, row) in rows {
+                let title = format!("{title} (step {})", pictures.step);
+                picture_row(ui, ctx, studio, &title, key, pictures.step, row);
+            }
         }
     }
 

@@ -124,6 +124,12 @@ impl Detector {
         self.detect_with(image, self.camera.as_ref())
     }
 
+    /// The camera [`Detector::detect`] poses `image`'s markers with: the detector's own, or the
+    /// guess from the image's size.
+    pub fn camera_for(&self, image: &GrayImage) -> Option<Camera> {
+        self.camera.or_else(|| guess_camera(image))
+    }
+
     /// [`Detector::detect`] with this image's camera (several images of different cameras or
     /// sizes on one detector, in parallel).
     pub fn detect_with(&self, image: &GrayImage, camera: Option<&Camera>) -> (Vec<Found>, Timings) {

@@ -6,7 +6,7 @@ pub mod loss;
 pub mod validate;
 
 use super::stage::{Picture, TrainStage};
-use crate::detect::stage2::anchors::PatchSpec;
+use crate::detect::stage2::anchors::{PatchSpec, RawOutputs};
 use crate::detect::stage2::model_file;
 use crate::detect::stage2::net::{macs, NetConfig, Stage2Net};
 use crate::detect::stage2::pipeline::raw_outputs;
@@ -145,18 +145,11 @@ fn patch_picture(
             .filter(|k| k.visible)
             .map(|k| ([k.x, k.y], k.category))
             .collect(),
-        Some(net) => {
-            let p = spec.size as usize;
-            let x = burn::tensor::Tensor::<4>::from_data(
-                burn::tensor::TensorData::new(sample.input.clone(), [1, 1, p, p]),
-                &Device::flex(),
-            );
-            let raw = raw_outputs(net.forward(x), classes);
-            raw.first()
-                .and_then(|raw| crate::detect::stage2::decode::read_patch(family, spec, raw))
-                .map(|r| r.found.iter().map(|f| (f.pos, f.category)).collect())
-                .unwrap_or_default()
-        }
+        Some(net) => forward(net, spec, classes, std::slice::from_ref(sample))
+            .first()
+            .and_then(|raw| crate::detect::stage2::decode::read_patch(family, spec, raw))
+            .map(|r| r.found.iter().map(|f| (f.pos, f.category)).collect())
+            .unwrap_or_default(),
     };
     let outlines = match (net, <[[f64; 2]; 4]>::try_from(sample.truth.roi.as_slice())) {
         (None, Ok(roi)) => vec![roi],
@@ -177,10 +170,20 @@ pub fn run_validation(
     set: &[PatchSample],
     classes: usize,
 ) -> Metrics {
-    let net = net.valid();
+    let raw = forward(&net.valid(), spec, classes, set);
+    validate::score(family, spec, set, &raw)
+}
+
+/// The network's raw outputs for each sample, in batches of 32 (`net` in inference mode).
+fn forward(
+    net: &Stage2Net,
+    spec: &PatchSpec,
+    classes: usize,
+    samples: &[PatchSample],
+) -> Vec<RawOutputs> {
     let device = Device::flex();
     let p = spec.size as usize;
-    let raw: Vec<_> = set
+    samples
         .chunks(32)
         .flat_map(|chunk| {
             let pixels: Vec<f32> = chunk.iter().flat_map(|s| s.input.iter().copied()).collect();
@@ -190,6 +193,5 @@ pub fn run_validation(
             );
             raw_outputs(net.forward(x), classes)
         })
-        .collect();
-    validate::score(family, spec, set, &raw)
+        .collect()
 }
