@@ -21,6 +21,7 @@ use crate::io::Stopwatch;
 use nalgebra::{DMatrix, Matrix3, SMatrix, SVector};
 use serde::{Deserialize, Serialize};
 pub use template::Template;
+use template::EDGE;
 
 /// How far `detect` goes beyond the network's keypoints.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -144,9 +145,8 @@ const FINEST_BLUR_PX: f64 = 0.1;
 const MAX_PIXELS: f64 = 8000.0;
 /// The share of the pixels the coarse levels use.
 const COARSE_SHARE: f64 = 0.2;
-/// Pixels where the template's gradient is below this share of its largest are flat: they carry
-/// no information on the geometry and are skipped.
-const EDGE: f64 = 0.02;
+/// The share that measures the residual before and after.
+const STATISTICS_SHARE: f64 = 0.5;
 
 /// Aligns `template` with `image`, starting from `start` (marker units → lens plane); `roi` are
 /// the family's ROI points in marker units (for the move and the centre).
@@ -195,7 +195,9 @@ pub fn refine(
         ppu: 1.0,
         noise: 2.0,
         iterations: 0,
+        scratch: Scratch::default(),
     };
+    (aligner.pixels, aligner.scratch) = WORKSPACE.with(|w| w.take());
     let Some(ppu) = pixels_per_unit(lens, &start.0, centre) else {
         return refused("the start homography is degenerate".into(), None);
     };
@@ -269,7 +271,7 @@ pub fn refine(
     }
     // The residual before and after, gain and offset fitted anew for each (the Gauss–Newton
     // state's own gain would favour the end), on half the pixels: enough to compare them.
-    aligner.share = 0.5;
+    aligner.share = STATISTICS_SHARE;
     let Some(end) = aligner.statistics(chosen) else {
         return refused("the marker left the image".into(), None);
     };
@@ -277,12 +279,12 @@ pub fn refine(
     let side_px = aligner.roi_side_px();
     let (blur_px, iterations) = (aligner.variance().sqrt(), aligner.iterations);
     let end_hc = std::mem::replace(&mut aligner.hc, start_hc);
-    let before = aligner.statistics(chosen);
+    let before = aligner.residual(chosen);
     let report = RefineReport {
         refined: true,
         kept_because: None,
         residual: end.rms,
-        start_residual: before.as_ref().map_or(f64::NAN, |s| s.rms),
+        start_residual: before.map_or(f64::NAN, |(_, rms)| rms),
         outliers: end.outliers,
         shift_px,
         blur_px,
@@ -309,8 +311,8 @@ pub fn refine(
             Some(report),
         );
     }
-    if let Some(b) = before {
-        if end.cost >= b.cost {
+    if let Some((start_cost, _)) = before {
+        if end.cost >= start_cost {
             return refused(
                 "the alignment did not lower the residual".into(),
                 Some(report),
@@ -466,6 +468,37 @@ struct Aligner<'a> {
     ppu: f64,
     noise: f64,
     iterations: usize,
+    /// Buffers of the normal equations and the residual, kept between iterations (and between
+    /// alignments, see [`WORKSPACE`]).
+    scratch: Scratch,
+}
+
+thread_local! {
+    /// The buffers of the last alignment on this thread, for the next: a marker's are a megabyte
+    /// or so, and fresh ones came as zeroed pages from the system on every call.
+    static WORKSPACE: std::cell::Cell<(Vec<Pixel>, Scratch)> = Default::default();
+}
+
+impl Drop for Aligner<'_> {
+    fn drop(&mut self) {
+        let buffers = (
+            std::mem::take(&mut self.pixels),
+            std::mem::take(&mut self.scratch),
+        );
+        WORKSPACE.with(|w| w.set(buffers));
+    }
+}
+
+#[derive(Default)]
+struct Scratch {
+    /// The Jacobian column by column, `P` columns of `pixels.len()`.
+    columns: Vec<f64>,
+    weights: Vec<f64>,
+    weighted_residuals: Vec<f64>,
+    weighted: Vec<f64>,
+    /// [`Aligner::residual`]'s pixel values and model values.
+    values: Vec<f64>,
+    models: Vec<f64>,
 }
 
 struct Statistics {
@@ -558,18 +591,50 @@ impl Aligner<'_> {
         // same phase): first the box, to about twice the wanted count, then the band.
         let area = (bw * bh) as f64;
         let mut keep = (2.0 * MAX_PIXELS / area).min(1.0);
-        let mut band = Vec::new();
+        let mut band = std::mem::take(&mut self.pixels);
+        band.clear();
+        // Most candidates are flat and dropped: without distortion, pixels map to marker units
+        // by one homography, stepped along the row, and only the band's pixels are undistorted.
+        let undistorted = match self.lens {
+            Lens::Pixels => Some(Matrix3::identity()),
+            Lens::Camera(c) if c.distortion == [0.0; 5] => Some(Matrix3::new(
+                1.0 / c.fx,
+                0.0,
+                -c.cx / c.fx,
+                0.0,
+                1.0 / c.fy,
+                -c.cy / c.fy,
+                0.0,
+                0.0,
+                1.0,
+            )),
+            Lens::Camera(_) => None,
+        };
+        let to_marker = undistorted.map(|k| translation(self.centre) * inverse * k);
         for by in 0..bh {
+            let y = lo_y + by * block;
+            let row = to_marker.map(|g| {
+                let start = g * nalgebra::Vector3::new(lo_x as f64 + half, y as f64 + half, 1.0);
+                (start, g.column(0) * block as f64)
+            });
             for bx in 0..bw {
                 if keep < 1.0 && spread(bx, by) >= keep {
                     continue;
                 }
-                let (x, y) = (lo_x + bx * block, lo_y + by * block);
-                let plane = self.lens.from_image([x as f64 + half, y as f64 + half]);
-                let uc = apply(&inverse, plane);
-                let u = [uc[0] + self.centre[0], uc[1] + self.centre[1]];
+                let x = lo_x + bx * block;
+                let pixel = [x as f64 + half, y as f64 + half];
+                let u = match row {
+                    Some((start, step)) => {
+                        let q = start + step * bx as f64;
+                        [q[0] / q[2], q[1] / q[2]]
+                    }
+                    None => {
+                        let uc = apply(&inverse, self.lens.from_image(pixel));
+                        [uc[0] + self.centre[0], uc[1] + self.centre[1]]
+                    }
+                };
                 // The band of the coarsest level used holds every finer level's band.
-                let Some(t) = self.template.lookup(band_level, u) else {
+                let Some(t) = self.template.lookup_edge(band_level, u) else {
                     continue;
                 };
                 if t.gradient[0] * t.gradient[0] + t.gradient[1] * t.gradient[1]
@@ -587,20 +652,30 @@ impl Aligner<'_> {
                 let rank = spread(bx + 7919, by + 104_729);
                 band.push(Pixel {
                     value: sum as f64 * norm,
-                    plane,
+                    plane: self.lens.from_image(pixel),
                     rank,
                 });
             }
         }
         keep = (MAX_PIXELS / band.len().max(1) as f64).min(1.0);
-        self.pixels = band
-            .into_iter()
-            .filter(|p| p.rank < keep)
-            .map(|p| Pixel {
-                rank: p.rank / keep,
-                ..p
-            })
-            .collect();
+        band.retain(|p| p.rank < keep);
+        for p in &mut band {
+            p.rank /= keep;
+        }
+        self.pixels = band;
+        // Each share's pixels first, still in image order within (the template's texels are
+        // then read in order): a share is a prefix, not a test per pixel whose outcome the
+        // processor cannot predict.
+        let bucket =
+            |rank: f64| usize::from(rank >= COARSE_SHARE) + usize::from(rank >= STATISTICS_SHARE);
+        self.pixels.sort_by_key(|p| bucket(p.rank));
+    }
+
+    /// The pixels of the share in use (see [`Aligner::collect_pixels`] for their order).
+    fn in_use(&self) -> &[Pixel] {
+        debug_assert!([COARSE_SHARE, STATISTICS_SHARE, 1.0].contains(&self.share));
+        let end = self.pixels.partition_point(|p| p.rank < self.share);
+        &self.pixels[..end]
     }
 
     /// The image's noise: differences between neighbouring pixels where the template is flat.
@@ -645,38 +720,40 @@ impl Aligner<'_> {
         let threshold = EDGE * level.max_gradient;
         let level_variance = level.blur_units.powi(2);
         let [sx0, sy0, sx1, sy1] = self.template.support;
-        let (fx, fy) = match self.lens {
-            Lens::Pixels => (1.0, 1.0),
-            Lens::Camera(c) => (c.fx, c.fy),
+        // Lens-plane units per pixel.
+        let plane_per_px = match self.lens {
+            Lens::Pixels => [1.0, 1.0],
+            Lens::Camera(c) => [1.0 / c.fx, 1.0 / c.fy],
         };
-        let h = &self.hc;
+        let g = &inverse;
         let threshold2 = threshold * threshold;
         let [cxx, cyy, cxy] = self.blur;
-        for px in &self.pixels {
-            if px.rank >= self.share {
-                continue;
-            }
-            let uc = apply(&inverse, px.plane);
+        for px in self.in_use() {
+            let q = px.plane;
+            // One division per pixel: the marker point and, below, how it moves per pixel.
+            let s = 1.0 / (g[(2, 0)] * q[0] + g[(2, 1)] * q[1] + g[(2, 2)]);
+            let uc = [
+                (g[(0, 0)] * q[0] + g[(0, 1)] * q[1] + g[(0, 2)]) * s,
+                (g[(1, 0)] * q[0] + g[(1, 1)] * q[1] + g[(1, 2)]) * s,
+            ];
             let u = [uc[0] + self.centre[0], uc[1] + self.centre[1]];
             if !(u[0] >= sx0 && u[0] <= sx1 && u[1] >= sy0 && u[1] <= sy1) {
                 continue;
             }
-            let Some(t) = self.template.lookup(k, u) else {
+            let Some(t) = self.template.lookup_edge(k, u) else {
                 continue;
             };
             if t.gradient[0] * t.gradient[0] + t.gradient[1] * t.gradient[1] < threshold2 {
                 continue;
             }
-            // J = d(pixel)/d(marker unit) here (the lens's distortion left out: it barely
-            // changes J across a marker), and M = J⁻¹.
-            let w = h[(2, 0)] * uc[0] + h[(2, 1)] * uc[1] + h[(2, 2)];
-            let q = px.plane;
-            let j00 = fx * (h[(0, 0)] - q[0] * h[(2, 0)]) / w;
-            let j01 = fx * (h[(0, 1)] - q[0] * h[(2, 1)]) / w;
-            let j10 = fy * (h[(1, 0)] - q[1] * h[(2, 0)]) / w;
-            let j11 = fy * (h[(1, 1)] - q[1] * h[(2, 1)]) / w;
-            let det = j00 * j11 - j01 * j10;
-            let (m00, m01, m10, m11) = (j11 / det, -j01 / det, -j10 / det, j00 / det);
+            // M = d(marker unit)/d(pixel) here (the lens's distortion left out: it barely
+            // changes M across a marker), the derivative of the inverse homography: row r is
+            // (G_r − u_r G_2) / (G_2 · q), per pixel through the focal lengths.
+            let (sx, sy) = (s * plane_per_px[0], s * plane_per_px[1]);
+            let m00 = (g[(0, 0)] - uc[0] * g[(2, 0)]) * sx;
+            let m01 = (g[(0, 1)] - uc[0] * g[(2, 1)]) * sy;
+            let m10 = (g[(1, 0)] - uc[1] * g[(2, 0)]) * sx;
+            let m11 = (g[(1, 1)] - uc[1] * g[(2, 1)]) * sy;
             // C_u = cxx·m0 m0ᵀ + cyy·m1 m1ᵀ + cxy·(m0 m1ᵀ + m1 m0ᵀ), m0 and m1 M's columns; each
             // term's effect on the model: its half trace times the slope towards the next level,
             // plus its traceless part against the template's second derivatives.
@@ -706,6 +783,23 @@ impl Aligner<'_> {
             stt += t * t;
             sti += t * px.value;
         });
+        self.set_photometric(n, st, si, stt, sti)
+    }
+
+    /// [`Aligner::fit_photometric`] to pixel values and the model's values already visited.
+    fn fit_photometric_to(&mut self, values: &[f64], models: &[f64]) -> bool {
+        let (mut st, mut si, mut stt, mut sti) = (0.0, 0.0, 0.0, 0.0);
+        for (&v, &t) in values.iter().zip(models) {
+            st += t;
+            si += v;
+            stt += t * t;
+            sti += t * v;
+        }
+        self.set_photometric(values.len() as f64, st, si, stt, sti)
+    }
+
+    /// Gain and offset from the sums of the model's values t and the pixels' i.
+    fn set_photometric(&mut self, n: f64, st: f64, si: f64, stt: f64, sti: f64) -> bool {
         let var = stt - st * st / n.max(1.0);
         if n < 50.0 || var <= 1e-9 {
             return false;
@@ -726,16 +820,26 @@ impl Aligner<'_> {
     /// Normal equations of the 8 warp, 2 photometric and 1 blur parameters at the current
     /// estimate. The model is the template at H⁻¹(pixel); moving H by (I + D) moves the marker
     /// point a pixel sees by −D u, hence the template's gradient in the warp columns.
-    fn normal_equations(&self, k: usize) -> Option<(Normal, Statistics)> {
+    fn normal_equations(&mut self, k: usize) -> Option<(Normal, Statistics)> {
         let (huber, outlier) = (self.huber_threshold(), self.outlier_threshold());
         let (mut n, mut cost, mut sq, mut outliers, mut wsum) = (0usize, 0.0, 0.0, 0usize, 0.0);
         let gain = self.gain;
         // The Jacobian column by column (one contiguous array per parameter), then JᵀWJ as
         // dot products: a pixel's 91 products, accumulated row by row, took a third of the time.
         let cap = self.pixels.len();
-        let mut columns = vec![0f64; P * cap];
-        let mut weights = vec![0f64; cap];
-        let mut weighted_residuals = vec![0f64; cap];
+        let mut scratch = std::mem::take(&mut self.scratch);
+        let Scratch {
+            columns,
+            weights,
+            weighted_residuals,
+            weighted,
+            ..
+        } = &mut scratch;
+        // Every entry read below is written first: no need to clear.
+        columns.resize(P * cap, 0.0);
+        weights.resize(cap, 0.0);
+        weighted_residuals.resize(cap, 0.0);
+        weighted.resize(cap, 0.0);
         self.visit(k, |px, uc, t, model, d| {
             let r = px.value - (gain * model + self.offset);
             let ar = r.abs();
@@ -773,11 +877,12 @@ impl Aligner<'_> {
             n += 1;
         });
         if n < 50 {
+            self.scratch = scratch;
             return None;
         }
         let mut a = SMatrix::<f64, P, P>::zeros();
         let mut g = [0f64; P];
-        let mut weighted = vec![0f64; n];
+        let weighted = &mut weighted[..n];
         for r_ in 0..P {
             let jr = &columns[r_ * cap..r_ * cap + n];
             g[r_] = dot(jr, &weighted_residuals[..n]);
@@ -785,7 +890,7 @@ impl Aligner<'_> {
                 *o = j * w;
             }
             for c in r_..P {
-                let v = dot(&weighted, &columns[c * cap..c * cap + n]);
+                let v = dot(weighted, &columns[c * cap..c * cap + n]);
                 a[(r_, c)] = v;
                 a[(c, r_)] = v;
             }
@@ -798,6 +903,7 @@ impl Aligner<'_> {
             covariance: None,
             residual_variance: wsum / (nf - P as f64).max(1.0),
         };
+        self.scratch = scratch;
         Some(((a, SVector::from(g)), stats))
     }
 
@@ -862,6 +968,37 @@ impl Aligner<'_> {
         self.blur[1] = self.blur[1].max(0.1 * level);
         let most = 0.95 * (self.blur[0] * self.blur[1]).sqrt();
         self.blur[2] = self.blur[2].clamp(-most, most);
+    }
+
+    /// The Huber cost per pixel and the RMS residual at the current homography, gain and offset
+    /// re-fitted: what [`Aligner::statistics`] says without the normal equations, for the start.
+    fn residual(&mut self, k: usize) -> Option<(f64, f64)> {
+        // One visit: the pixels' and the model's values are kept for the second pass.
+        let mut scratch = std::mem::take(&mut self.scratch);
+        let (values, models) = (&mut scratch.values, &mut scratch.models);
+        values.clear();
+        models.clear();
+        self.visit(k, |px, _, _, model, _| {
+            values.push(px.value);
+            models.push(model);
+        });
+        let fitted = self.fit_photometric_to(values, models);
+        let huber = self.huber_threshold();
+        let (gain, offset) = (self.gain, self.offset);
+        let (mut cost, mut sq) = (0.0, 0.0);
+        for (v, m) in values.iter().zip(models.iter()) {
+            let r = v - (gain * m + offset);
+            let ar = r.abs();
+            cost += if ar <= huber {
+                0.5 * r * r
+            } else {
+                huber * (ar - 0.5 * huber)
+            };
+            sq += r * r;
+        }
+        let n = values.len() as f64;
+        self.scratch = scratch;
+        fitted.then(|| (cost / n, (sq / n).sqrt()))
     }
 
     /// Residual statistics at the current homography, with gain and offset re-fitted.

@@ -28,6 +28,10 @@ fn supersample(texels: f64) -> usize {
     }
 }
 
+/// Where the template's gradient is below this share of its level's largest it is flat: such
+/// points carry no information on the geometry, and the alignment skips them.
+pub const EDGE: f64 = 0.02;
+
 /// Blur levels at most (√2 apart: 0.5 to 0.5·2^6 finest texels).
 const MAX_LEVELS: usize = 14;
 
@@ -45,6 +49,11 @@ pub struct Level {
     pub texels: Vec<[f32; 6]>,
     /// The largest gradient magnitude of the level.
     pub max_gradient: f64,
+    /// Per cell between four texels (indexed by its top-left texel): whether a point inside may
+    /// have a gradient of [`EDGE`] × the largest, one byte each so the alignment can skip flat
+    /// points without reading their texels (four times 24 bytes, mostly outside the caches).
+    /// A bilinear gradient is a weighted mean of the corners', never longer than the longest.
+    edge_cells: Vec<bool>,
     /// Texels per marker unit.
     pub texels_per_unit: f64,
     /// Gaussian-equivalent blur of the level, in marker units.
@@ -269,6 +278,19 @@ impl Template {
     /// outside the level.
     #[inline]
     pub fn lookup(&self, k: usize, u: [f64; 2]) -> Option<Lookup> {
+        self.lookup_where(k, u, false)
+    }
+
+    /// [`Template::lookup`] where the template may have an edge: `None` too where it is surely
+    /// flat (gradient below [`EDGE`] × the level's largest everywhere between the four texels),
+    /// without reading them.
+    #[inline(always)]
+    pub fn lookup_edge(&self, k: usize, u: [f64; 2]) -> Option<Lookup> {
+        self.lookup_where(k, u, true)
+    }
+
+    #[inline(always)]
+    fn lookup_where(&self, k: usize, u: [f64; 2], edges_only: bool) -> Option<Lookup> {
         let level = &self.levels[k];
         let t = level.texels_per_unit;
         let x = (u[0] - self.origin[0]) * t - 0.5;
@@ -278,6 +300,9 @@ impl Template {
         }
         let (x0, y0) = (x as usize, y as usize);
         if x0 + 1 >= level.width || y0 + 1 >= level.height {
+            return None;
+        }
+        if edges_only && !level.edge_cells[y0 * level.width + x0] {
             return None;
         }
         let (fx, fy) = ((x - x0 as f64) as f32, (y - y0 as f64) as f32);
@@ -352,12 +377,26 @@ impl Level {
                 max_gradient = max_gradient.max((gx * gx + gy * gy) as f64);
             }
         }
+        let max_gradient = max_gradient.sqrt();
+        // A hair below the threshold: the lookup's f32 rounding must not make a point pass that
+        // the mask drops.
+        let floor = (0.999 * EDGE * max_gradient).powi(2) as f32;
+        let longest = |i: usize| {
+            [i, i + 1, i + w, i + w + 1]
+                .map(|j| texels[j][1] * texels[j][1] + texels[j][2] * texels[j][2])
+                .into_iter()
+                .fold(0f32, f32::max)
+        };
+        let edge_cells = (0..w * h)
+            .map(|i| i % w + 1 < w && i / w + 1 < h && longest(i) >= floor)
+            .collect();
         Self {
             width,
             height,
             values,
             texels,
-            max_gradient: max_gradient.sqrt(),
+            max_gradient,
+            edge_cells,
             texels_per_unit,
             blur_units,
             flat: Vec::new(),
