@@ -249,14 +249,20 @@ impl Template {
         let ratio = level.texels_per_unit / next.texels_per_unit;
         let (nw, nh) = (next.width, next.height);
         let mut slopes = vec![0f32; w * h];
+        // Where each column falls on the next level, worked out once rather than per texel.
+        let columns: Vec<(usize, usize, f32)> = (0..w)
+            .map(|x| {
+                let nx = ((x as f64 + 0.5) / ratio - 0.5).clamp(0.0, (nw - 1) as f64);
+                let x0 = nx as usize;
+                (x0, (x0 + 1).min(nw - 1), (nx - nx.floor()) as f32)
+            })
+            .collect();
+        let per_variance = 1.0 / dv;
         for y in 0..h {
             let ny = ((y as f64 + 0.5) / ratio - 0.5).clamp(0.0, (nh - 1) as f64);
             let (y0, fy) = (ny as usize, (ny - ny.floor()) as f32);
             let y1 = (y0 + 1).min(nh - 1);
-            for x in 0..w {
-                let nx = ((x as f64 + 0.5) / ratio - 0.5).clamp(0.0, (nw - 1) as f64);
-                let (x0, fx) = (nx as usize, (nx - nx.floor()) as f32);
-                let x1 = (x0 + 1).min(nw - 1);
+            for (x, &(x0, x1, fx)) in columns.iter().enumerate() {
                 let v = &next.values;
                 let at = crate::image::mix(
                     v[y0 * nw + x0],
@@ -266,7 +272,7 @@ impl Template {
                     fx,
                     fy,
                 );
-                slopes[y * w + x] = ((at - level.values[y * w + x]) as f64 / dv) as f32;
+                slopes[y * w + x] = ((at - level.values[y * w + x]) as f64 * per_variance) as f32;
             }
         }
         for (t, s) in self.levels[k].texels.iter_mut().zip(slopes) {
