@@ -627,13 +627,42 @@ impl Aligner<'_> {
             Lens::Camera(_) => None,
         };
         let to_marker = undistorted.map(|k| translation(self.centre) * inverse * k);
+        // Where the template's level is in the image (undistorted lenses): a block whose centre
+        // falls outside it cannot be in the band, and a tilted or turned marker leaves much of
+        // its bounding box outside.
+        let level_quad = undistorted.and_then(|_| {
+            let t = level.texels_per_unit;
+            let [ox, oy] = self.template.origin;
+            let (ex, ey) = (ox + level.width as f64 / t, oy + level.height as f64 / t);
+            let corners = [[ox, oy], [ex, oy], [ex, ey], [ox, ey]].map(|u| self.centred(u));
+            // All four in front of the camera, or no quad.
+            let depth =
+                |u: [f64; 2]| self.hc[(2, 0)] * u[0] + self.hc[(2, 1)] * u[1] + self.hc[(2, 2)];
+            let first = depth(corners[0]).signum();
+            corners
+                .iter()
+                .all(|&u| depth(u).signum() == first && depth(u) != 0.0)
+                .then(|| corners.map(|u| self.pixel(u)))
+        });
         for by in 0..bh {
             let y = lo_y + by * block;
             let row = to_marker.map(|g| {
                 let start = g * nalgebra::Vector3::new(lo_x as f64 + half, y as f64 + half, 1.0);
                 (start, g.column(0) * block as f64)
             });
-            for bx in 0..bw {
+            let (first, last) = match level_quad.map(|q| row_span(&q, y as f64 + half)) {
+                // (A pixel of slack for the rounding of the quad's corners.)
+                Some(Some((from, to))) => (
+                    ((from - 1.0 - half - lo_x as f64) / block as f64)
+                        .ceil()
+                        .max(0.0) as usize,
+                    ((to + 1.0 - half - lo_x as f64) / block as f64 + 1.0).clamp(0.0, bw as f64)
+                        as usize,
+                ),
+                Some(None) => continue,
+                None => (0, bw),
+            };
+            for bx in first..last {
                 if keep < 1.0 && spread(bx, by) >= keep {
                     continue;
                 }
@@ -1074,8 +1103,6 @@ impl Aligner<'_> {
     }
 }
 
-/// Σ aᵢbᵢ with eight independent partial sums, which the compiler turns into vector
-/// instructions (one running sum would wait on each addition in turn).
 /// Pixels per chunk of the normal equations: the chunk's 13 columns (26 kB) stay in the
 /// first-level cache.
 const CHUNK: usize = 256;
@@ -1103,6 +1130,8 @@ fn accumulate(
     }
 }
 
+/// Σ aᵢbᵢ with eight independent partial sums, which the compiler turns into vector
+/// instructions (one running sum would wait on each addition in turn).
 #[inline(always)]
 fn dot(a: &[f64], b: &[f64]) -> f64 {
     let mut partial = [0f64; 8];
@@ -1137,6 +1166,20 @@ fn pixels_per_unit(lens: Lens, h: &Matrix3<f64>, at: [f64; 2]) -> Option<f64> {
     let cross = (x[0] - o[0]) * (y[1] - o[1]) - (x[1] - o[1]) * (y[0] - o[0]);
     let s = cross.abs().sqrt();
     (s.is_finite() && s > 1e-6).then_some(s)
+}
+
+/// The x extent of a convex quadrilateral on the row at height `y`; `None` when the row misses it.
+fn row_span(quad: &[[f64; 2]; 4], y: f64) -> Option<(f64, f64)> {
+    let mut span: Option<(f64, f64)> = None;
+    for i in 0..4 {
+        let (a, b) = (quad[i], quad[(i + 1) % 4]);
+        if (a[1] - y) * (b[1] - y) > 0.0 || a[1] == b[1] {
+            continue;
+        }
+        let x = a[0] + (y - a[1]) * (b[0] - a[0]) / (b[1] - a[1]);
+        span = Some(span.map_or((x, x), |(lo, hi)| (lo.min(x), hi.max(x))));
+    }
+    span
 }
 
 /// A well-mixed number in [0, 1) from a position (SplitMix64's finaliser).
