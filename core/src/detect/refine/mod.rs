@@ -365,16 +365,40 @@ impl Refined {
 }
 
 /// Templates already rendered, by family, ID and texel density: markers recur from frame to frame,
-/// and rendering one costs more than aligning it.
-#[derive(Default)]
+/// and rendering one costs more than aligning it. Bounded by memory, least recently used first
+/// out: a template of a large marker is several megabytes, and a benchmark set or a long video
+/// sees hundreds of IDs (a count limit of 256 let `detect-set` grow past a gigabyte).
 pub struct TemplateCache {
-    templates:
-        std::sync::Mutex<std::collections::HashMap<(String, usize, u32), std::sync::Arc<Template>>>,
+    inner: std::sync::Mutex<CacheInner>,
+    budget_bytes: usize,
+}
+
+impl Default for TemplateCache {
+    fn default() -> Self {
+        Self::with_budget(Self::BUDGET_BYTES)
+    }
+}
+
+type TemplateKey = (String, usize, u32);
+
+#[derive(Default)]
+struct CacheInner {
+    /// Each template with when it was last used.
+    templates: std::collections::HashMap<TemplateKey, (std::sync::Arc<Template>, u64)>,
+    bytes: usize,
+    clock: u64,
 }
 
 impl TemplateCache {
-    /// Templates kept at most (each is a few hundred kB).
-    const CAPACITY: usize = 256;
+    /// Bytes of templates kept at most, by default.
+    pub const BUDGET_BYTES: usize = 192 << 20;
+
+    pub fn with_budget(budget_bytes: usize) -> Self {
+        Self {
+            inner: Default::default(),
+            budget_bytes,
+        }
+    }
 
     pub fn get(
         &self,
@@ -383,26 +407,48 @@ impl TemplateCache {
         texels_per_unit: f64,
     ) -> Result<std::sync::Arc<Template>, crate::render::scene::RenderError> {
         let key = (family.name().to_string(), id, texels_per_unit as u32);
-        if let Some(t) = self.lock().get(&key) {
-            return Ok(t.clone());
+        {
+            let mut inner = self.lock();
+            inner.clock += 1;
+            let now = inner.clock;
+            if let Some((t, used)) = inner.templates.get_mut(&key) {
+                *used = now;
+                return Ok(t.clone());
+            }
         }
         let template = std::sync::Arc::new(Template::render(family, id, texels_per_unit)?);
-        let mut map = self.lock();
-        if map.len() >= Self::CAPACITY {
-            map.clear();
+        let mut inner = self.lock();
+        inner.clock += 1;
+        let now = inner.clock;
+        let bytes = template.bytes();
+        if let Some((old, _)) = inner.templates.insert(key, (template.clone(), now)) {
+            // Rendered twice at once by two threads: the first copy goes.
+            inner.bytes -= old.bytes();
         }
-        map.insert(key, template.clone());
+        inner.bytes += bytes;
+        while inner.bytes > self.budget_bytes && inner.templates.len() > 1 {
+            let oldest = inner
+                .templates
+                .iter()
+                .min_by_key(|(_, (_, used))| *used)
+                .map(|(k, _)| k.clone());
+            let Some(oldest) = oldest else { break };
+            if let Some((t, _)) = inner.templates.remove(&oldest) {
+                inner.bytes -= t.bytes();
+            }
+        }
         Ok(template)
     }
 
-    fn lock(
-        &self,
-    ) -> std::sync::MutexGuard<
-        '_,
-        std::collections::HashMap<(String, usize, u32), std::sync::Arc<Template>>,
-    > {
+    /// Templates held now and their bytes.
+    pub fn usage(&self) -> (usize, usize) {
+        let inner = self.lock();
+        (inner.templates.len(), inner.bytes)
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, CacheInner> {
         // A panic while holding the lock leaves a valid map: keep using it.
-        self.templates.lock().unwrap_or_else(|e| e.into_inner())
+        self.inner.lock().unwrap_or_else(|e| e.into_inner())
     }
 }
 

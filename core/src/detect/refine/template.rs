@@ -41,7 +41,8 @@ const MAX_LEVELS: usize = 14;
 pub struct Level {
     pub width: usize,
     pub height: usize,
-    pub values: Vec<f32>,
+    /// Gray values 0–255, only while the template is built (the texels hold them too).
+    values: Vec<f32>,
     /// Per texel: value, gradient (x, y) per marker unit, the change towards the next level per
     /// unit of blur variance, and two second derivatives per marker unit² — (T_xx − T_yy) / 2 and
     /// T_xy — for blur that differs between directions: side by side, so a lookup reads one cache
@@ -201,7 +202,23 @@ impl Template {
             template.select_flat(k);
             template.fill_blur_slope(k);
         }
+        // The gray values are in the texels too; the plain copy only served the next level.
+        for level in &mut template.levels {
+            level.values = Vec::new();
+        }
         Ok(template)
+    }
+
+    /// The memory the template holds, bytes (for the cache's budget).
+    pub fn bytes(&self) -> usize {
+        self.levels
+            .iter()
+            .map(|l| {
+                l.texels.len() * std::mem::size_of::<[f32; 6]>()
+                    + l.edge_cells.len()
+                    + l.flat.len() * std::mem::size_of::<[f64; 2]>()
+            })
+            .sum()
     }
 
     /// Marker units of a texel centre of level `k`.
@@ -332,21 +349,6 @@ impl Template {
             half_difference: mix(4),
             cross: mix(5),
         })
-    }
-
-    /// The template's gray level at a point in marker units, from level `k` (bilinear).
-    pub fn value(&self, k: usize, u: [f64; 2]) -> f64 {
-        let level = &self.levels[k];
-        let t = level.texels_per_unit;
-        let x = (u[0] - self.origin[0]) * t - 0.5;
-        let y = (u[1] - self.origin[1]) * t - 0.5;
-        crate::image::bilinear(
-            level.width as u32,
-            level.height as u32,
-            x as f32,
-            y as f32,
-            |i| level.values[i],
-        ) as f64
     }
 }
 

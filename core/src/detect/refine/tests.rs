@@ -284,3 +284,27 @@ fn timing_on_a_harness_set() {
         render.len()
     );
 }
+
+#[test]
+fn the_template_cache_stays_within_its_memory_budget_dropping_the_least_recently_used() {
+    use std::sync::Arc;
+    let f = family("apriltag-36h11");
+    // Small templates (4 texels per unit): a budget of about three of them.
+    let one = Template::render(&f, 0, 4.0).unwrap().bytes();
+    let budget = 3 * one + one / 2;
+    let cache = TemplateCache::with_budget(budget);
+    let first = cache.get(&f, 0, 4.0).unwrap();
+    let id_one = cache.get(&f, 1, 4.0).unwrap();
+    for id in 2..8 {
+        cache.get(&f, id, 4.0).unwrap();
+        // ID 0 stays the most recently used, so it is never dropped.
+        assert!(Arc::ptr_eq(&first, &cache.get(&f, 0, 4.0).unwrap()));
+        let (count, bytes) = cache.usage();
+        assert!(bytes <= budget, "{count} templates, {bytes} bytes");
+    }
+    assert_eq!(cache.usage().0, 3);
+    // ID 1 was dropped long ago: rendered again, a new template; ID 7, just used, is kept.
+    assert!(!Arc::ptr_eq(&id_one, &cache.get(&f, 1, 4.0).unwrap()));
+    let recent = cache.get(&f, 7, 4.0).unwrap();
+    assert!(Arc::ptr_eq(&recent, &cache.get(&f, 7, 4.0).unwrap()));
+}
