@@ -520,8 +520,8 @@ struct Aligner<'a> {
 }
 
 thread_local! {
-    /// The buffers of the last alignment on this thread, for the next: a marker's are a megabyte
-    /// or so, and fresh ones came as zeroed pages from the system on every call.
+    /// The buffers of the last alignment on this thread, for the next: a large marker's pixels
+    /// are half a megabyte, and fresh ones came as zeroed pages from the system on every call.
     static WORKSPACE: std::cell::Cell<(Vec<Pixel>, Scratch)> = Default::default();
 }
 
@@ -540,6 +540,27 @@ struct Scratch {
     /// [`Aligner::residual`]'s pixel values and model values.
     values: Vec<f64>,
     models: Vec<f64>,
+}
+
+/// Sums over pixels of the model's value t and the pixel's i, for the least-squares gain and
+/// offset.
+#[derive(Default)]
+struct PhotometricSums {
+    n: f64,
+    st: f64,
+    si: f64,
+    stt: f64,
+    sti: f64,
+}
+
+impl PhotometricSums {
+    fn add(&mut self, t: f64, i: f64) {
+        self.n += 1.0;
+        self.st += t;
+        self.si += i;
+        self.stt += t * t;
+        self.sti += t * i;
+    }
 }
 
 /// See [`Aligner::model_context`].
@@ -878,32 +899,20 @@ impl Aligner<'_> {
 
     /// Gain and offset by least squares at the current homography and blur.
     fn fit_photometric(&mut self, k: usize) -> bool {
-        let (mut n, mut st, mut si, mut stt, mut sti) = (0f64, 0.0, 0.0, 0.0, 0.0);
-        self.visit(k, |px, sample| {
-            let t = sample.model;
-            n += 1.0;
-            st += t;
-            si += px.value;
-            stt += t * t;
-            sti += t * px.value;
-        });
-        self.set_photometric(n, st, si, stt, sti)
+        let mut sums = PhotometricSums::default();
+        self.visit(k, |px, sample| sums.add(sample.model, px.value));
+        self.set_photometric(&sums)
     }
 
-    /// [`Aligner::fit_photometric`] to pixel values and the model's values already visited.
-    fn fit_photometric_to(&mut self, values: &[f64], models: &[f64]) -> bool {
-        let (mut st, mut si, mut stt, mut sti) = (0.0, 0.0, 0.0, 0.0);
-        for (&v, &t) in values.iter().zip(models) {
-            st += t;
-            si += v;
-            stt += t * t;
-            sti += t * v;
-        }
-        self.set_photometric(values.len() as f64, st, si, stt, sti)
-    }
-
-    /// Gain and offset from the sums of the model's values t and the pixels' i.
-    fn set_photometric(&mut self, n: f64, st: f64, si: f64, stt: f64, sti: f64) -> bool {
+    /// Gain and offset from the sums of the model's values and the pixels'.
+    fn set_photometric(&mut self, sums: &PhotometricSums) -> bool {
+        let &PhotometricSums {
+            n,
+            st,
+            si,
+            stt,
+            sti,
+        } = sums;
         let var = stt - st * st / n.max(1.0);
         if n < 50.0 || var <= 1e-9 {
             return false;
@@ -924,7 +933,7 @@ impl Aligner<'_> {
     /// Normal equations of the 8 warp, 2 photometric and 1 blur parameters at the current
     /// estimate. The model is the template at H⁻¹(pixel); moving H by (I + D) moves the marker
     /// point a pixel sees by −D u, hence the template's gradient in the warp columns.
-    fn normal_equations(&mut self, k: usize) -> Option<(Normal, Statistics)> {
+    fn normal_equations(&self, k: usize) -> Option<(Normal, Statistics)> {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
         {
@@ -939,12 +948,12 @@ impl Aligner<'_> {
     /// products and fused multiply-adds in every pixel's model.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn normal_equations_avx2(&mut self, k: usize) -> Option<(Normal, Statistics)> {
+    unsafe fn normal_equations_avx2(&self, k: usize) -> Option<(Normal, Statistics)> {
         self.normal_equations_portable(k)
     }
 
     #[inline(always)]
-    fn normal_equations_portable(&mut self, k: usize) -> Option<(Normal, Statistics)> {
+    fn normal_equations_portable(&self, k: usize) -> Option<(Normal, Statistics)> {
         let (huber, outlier) = (self.huber_threshold(), self.outlier_threshold());
         let (mut n, mut cost, mut sq, mut outliers, mut wsum) = (0usize, 0.0, 0.0, 0usize, 0.0);
         let gain = self.gain;
@@ -971,11 +980,7 @@ impl Aligner<'_> {
             let r = px.value - (gain * model + self.offset);
             let ar = r.abs();
             let w = if ar <= huber { 1.0 } else { huber / ar };
-            cost += if ar <= huber {
-                0.5 * r * r
-            } else {
-                huber * (ar - 0.5 * huber)
-            };
+            cost += huber_cost(r, huber);
             sq += r * r;
             wsum += w * r * r;
             outliers += usize::from(ar > outlier);
@@ -1117,18 +1122,17 @@ impl Aligner<'_> {
             values.push(px.value);
             models.push(sample.model);
         });
-        let fitted = self.fit_photometric_to(values, models);
+        let mut sums = PhotometricSums::default();
+        for (&v, &t) in values.iter().zip(models.iter()) {
+            sums.add(t, v);
+        }
+        let fitted = self.set_photometric(&sums);
         let huber = self.huber_threshold();
         let (gain, offset) = (self.gain, self.offset);
         let (mut cost, mut sq) = (0.0, 0.0);
         for (v, m) in values.iter().zip(models.iter()) {
             let r = v - (gain * m + offset);
-            let ar = r.abs();
-            cost += if ar <= huber {
-                0.5 * r * r
-            } else {
-                huber * (ar - 0.5 * huber)
-            };
+            cost += huber_cost(r, huber);
             sq += r * r;
         }
         let n = values.len() as f64;
@@ -1146,6 +1150,17 @@ impl Aligner<'_> {
             .try_inverse()
             .map(|inv| inv.fixed_view::<8, 8>(0, 0).into_owned() * stats.residual_variance);
         Some(stats)
+    }
+}
+
+/// The Huber loss of residual `r` with threshold `huber`: quadratic inside, linear beyond.
+#[inline(always)]
+fn huber_cost(r: f64, huber: f64) -> f64 {
+    let ar = r.abs();
+    if ar <= huber {
+        0.5 * r * r
+    } else {
+        huber * (ar - 0.5 * huber)
     }
 }
 

@@ -298,22 +298,10 @@ impl Template {
     }
 
     /// Value, gradient and blur slope of level `k` at `u` (marker units), bilinear; `None`
-    /// outside the level.
-    #[inline]
-    pub fn lookup(&self, k: usize, u: [f64; 2]) -> Option<Lookup> {
-        self.lookup_where(k, u, false)
-    }
-
-    /// [`Template::lookup`] where the template may have an edge: `None` too where it is surely
-    /// flat (gradient below [`EDGE`] × the level's largest everywhere between the four texels),
-    /// without reading them.
+    /// outside the level and where the template is surely flat (gradient below [`EDGE`] × the
+    /// level's largest everywhere between the four texels), without reading the texels then.
     #[inline(always)]
     pub fn lookup_edge(&self, k: usize, u: [f64; 2]) -> Option<Lookup> {
-        self.lookup_where(k, u, true)
-    }
-
-    #[inline(always)]
-    fn lookup_where(&self, k: usize, u: [f64; 2], edges_only: bool) -> Option<Lookup> {
         let level = &self.levels[k];
         let t = level.texels_per_unit;
         let x = (u[0] - self.origin[0]) * t - 0.5;
@@ -325,7 +313,7 @@ impl Template {
         if x0 + 1 >= level.width || y0 + 1 >= level.height {
             return None;
         }
-        if edges_only && !level.edge_cells[y0 * level.width + x0] {
+        if !level.edge_cells[y0 * level.width + x0] {
             return None;
         }
         let (fx, fy) = ((x - x0 as f64) as f32, (y - y0 as f64) as f32);
