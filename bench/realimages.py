@@ -6,7 +6,10 @@ reference: OpenCV's ArucoDetector run here). A reference marker counts as found 
 reports its ID with every corner within 3 px (AprilTag's +0.5 px pixel convention undone).
 
     bench/.venv/bin/python bench/realimages.py REALIMAGES_DIR --tagsmith target/release/tagsmith \
-        --annotate docs/detections
+        --annotate docs/detections [--upsample]
+
+`--upsample` passes `detect --upsample` (stage 1 also on the image enlarged twice, for markers
+under about 20 px such as the swarmathon's 13-20 px tags).
 """
 
 import argparse
@@ -66,6 +69,7 @@ def main():
     ap.add_argument("realimages")
     ap.add_argument("--tagsmith", required=True)
     ap.add_argument("--annotate", help="folder for annotated images")
+    ap.add_argument("--upsample", action="store_true", help="detect --upsample")
     a = ap.parse_args()
     groups = [
         ("apriltag-36h11", sorted(glob.glob(os.path.join(a.realimages, "apriltag_swarmathon", "*.jpg"))),
@@ -84,6 +88,8 @@ def main():
             cmd = [a.tagsmith, "detect", *images, "--family", family, "--json", out]
             if a.annotate:
                 cmd += ["--annotate", a.annotate]
+            if a.upsample:
+                cmd.append("--upsample")
             subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
             result = json.load(open(out))
         for path, entry in zip(images, result["images"]):

@@ -63,6 +63,10 @@ pub struct DetectArgs {
     /// [range: (0, 1)].
     #[arg(long, default_value_t = GroupOptions::default().corner, value_parser = unit_interval())]
     pub corner_threshold: f32,
+    /// Stage 1 also looks at the image enlarged twice: finds markers down to about 10 px wide
+    /// (from about 20 px), at four times stage 1's cost on the full-size image.
+    #[arg(long)]
+    pub upsample: bool,
     /// Write the detections file (the harness's format, for `tagsmith eval score`).
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -254,6 +258,7 @@ impl DetectArgs {
             refine: self.refine,
         };
         detector.options.propose.group.corner = self.corner_threshold;
+        detector.options.propose.upsample = self.upsample;
         if let Some(dir) = &self.annotate {
             std::fs::create_dir_all(dir)
                 .with_context(|| format!("cannot create the folder {}", dir.display()))
@@ -339,6 +344,9 @@ pub struct DetectSetArgs {
     /// Stage-1 model file for --full [default: the shipped one].
     #[arg(long)]
     pub stage1: Option<PathBuf>,
+    /// With --full: stage 1 also on the image enlarged twice (as `detect --upsample`).
+    #[arg(long)]
+    pub upsample: bool,
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
 }
@@ -384,6 +392,7 @@ impl DetectSetArgs {
             let mut detector = Detector::new(stage1, vec![reader]).failure()?;
             detector.camera = Some(s.camera);
             detector.options.read = read;
+            detector.options.propose.upsample = self.upsample;
             let file = set::run_detector(&self.set, &s, &mut detector, &include)?;
             let json = serde_json::to_string_pretty(&file).failure()?;
             write_output(&self.output, json.as_bytes())?;
@@ -548,6 +557,7 @@ mod tests {
             model: None,
             stage1: None,
             corner_threshold: 0.3,
+            upsample: false,
             json: None,
             sequential: false,
             side_mm: None,

@@ -60,6 +60,8 @@ pub struct DetectState {
     /// its family, model file and whether to detect it.
     pub design: Option<(tagsmith::family::Family, std::path::PathBuf, bool)>,
     pub corner_threshold: f32,
+    /// Stage 1 also on the image enlarged twice (markers down to about 10 px).
+    pub upsample: bool,
     pub image: Option<LoadedImage>,
     pub result: Option<DetectResult>,
     /// The loaded detector and the families it was built for.
@@ -120,6 +122,7 @@ impl Default for DetectState {
             families: shipped_families().map(|f| (f.to_string(), true)).collect(),
             design: None,
             corner_threshold: GroupOptions::default().corner,
+            upsample: false,
             image: None,
             result: None,
             detector: None,
@@ -194,6 +197,7 @@ impl DetectState {
         }
         let (_, detector) = self.detector.as_mut().expect("built above");
         detector.options.propose.group.corner = self.corner_threshold;
+        detector.options.propose.upsample = self.upsample;
         Ok(())
     }
 
@@ -455,6 +459,16 @@ pub fn show(studio: &mut Studio, ui: &mut egui::Ui, ctx: &egui::Context) {
         if ui
             .add(slider)
             .on_hover_text("stage 1's corner confidence: lower finds more, costs more time")
+            .changed()
+        {
+            state.stale = true;
+        }
+        if ui
+            .checkbox(&mut state.upsample, "tiny markers")
+            .on_hover_text(
+                "stage 1 also looks at the image enlarged twice: finds markers down to about \
+                 10 px wide, stage 1 takes about five times as long",
+            )
             .changed()
         {
             state.stale = true;

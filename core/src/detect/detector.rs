@@ -3,7 +3,7 @@
 //! dropped — a false ROI costs stage-2 passes, never a wrong ID. The CLI, the harness and the
 //! studio all detect through [`Detector::detect`].
 
-use super::stage1::group::Proposal;
+use super::stage1::group::{same_quad, Proposal};
 use super::stage1::{ProposeOptions, Stage1};
 use super::stage2::model_file::ModelError;
 use super::stage2::{shipped_model, ReadOptions, Stage2, Stage2Result};
@@ -134,10 +134,9 @@ impl Detector {
     /// sizes on one detector, in parallel).
     pub fn detect_with(&self, image: &GrayImage, camera: Option<&Camera>) -> (Vec<Found>, Timings) {
         let clock = Stopwatch::start();
-        let proposals = self.stage1.propose(image, &self.options.propose);
+        let search = self.stage1.search(image, &self.options.propose);
         let mut timings = Timings {
             stage1_ms: clock.ms(),
-            proposals: proposals.len(),
             ..Timings::default()
         };
         let clock = Stopwatch::start();
@@ -149,6 +148,60 @@ impl Detector {
                 guessed.as_ref()
             }
         };
+        // Rounds: a ROI no family reads may have taken corners of real markers (a quad across
+        // two markers side by side), so stage 1 selects again without the ROIs that failed, and
+        // only the ROIs not read yet go to stage 2.
+        let (mut read, mut failed): (Vec<Proposal>, Vec<Proposal>) = (Vec::new(), Vec::new());
+        let mut found: Vec<Found> = Vec::new();
+        for _ in 0..ROUNDS {
+            let kept: Vec<Proposal> = found.iter().map(|f| f.proposal).collect();
+            let batch: Vec<Proposal> = search
+                .proposals(&kept, &failed)
+                .into_iter()
+                .filter(|p| !read.iter().any(|r| same_quad(p, r)))
+                .collect();
+            if batch.is_empty() {
+                break;
+            }
+            let best = self.read_all(image, &batch, camera, &mut timings);
+            for (proposal, best) in batch.iter().zip(best) {
+                match best {
+                    Some(f) => found.push(f),
+                    None => failed.push(*proposal),
+                }
+            }
+            read.extend(batch);
+        }
+        timings.proposals = read.len();
+        // Markers do not overlap: of two reads where either's centre lies inside the other (the
+        // same marker read twice, or a quad over part of a marker and its surroundings read as
+        // another code) the one whose code needed fewer corrections stays, the first on a tie.
+        let mut kept: Vec<Found> = Vec::new();
+        for f in found {
+            let overlapping = kept.iter().position(|g| {
+                inside(&g.marker.corners, centre(&f.marker.corners))
+                    || inside(&f.marker.corners, centre(&g.marker.corners))
+            });
+            match overlapping {
+                None => kept.push(f),
+                Some(k) if f.marker.corrected_errors < kept[k].marker.corrected_errors => {
+                    kept[k] = f
+                }
+                Some(_) => {}
+            }
+        }
+        timings.stage2_ms = clock.ms();
+        (kept, timings)
+    }
+
+    /// Stage 2 of every family on every proposal: for each, the family that reads it, if any.
+    fn read_all(
+        &self,
+        image: &GrayImage,
+        proposals: &[Proposal],
+        camera: Option<&Camera>,
+        timings: &mut Timings,
+    ) -> Vec<Option<Found>> {
         // The first stage-2 pass of each family over every proposal in one batch; only the ROIs
         // it decodes get the second pass, the alignment and the pose.
         let rois: Vec<[[f64; 2]; 4]> = proposals.iter().map(|p| p.corners).collect();
@@ -186,22 +239,13 @@ impl Detector {
                 }
             }
         }
-        let mut found: Vec<Found> = Vec::new();
-        for f in best.into_iter().flatten() {
-            let twice = found.iter().any(|g| {
-                g.family == f.family
-                    && g.marker.id == f.marker.id
-                    && (inside(&g.marker.corners, centre(&f.marker.corners))
-                        || inside(&f.marker.corners, centre(&g.marker.corners)))
-            });
-            if !twice {
-                found.push(f);
-            }
-        }
-        timings.stage2_ms = clock.ms();
-        (found, timings)
+        best
     }
 }
+
+/// Stage-1 selections per image at most: the first, and two more without the ROIs no family
+/// read.
+const ROUNDS: usize = 3;
 
 fn centre(q: &[[f64; 2]; 4]) -> [f64; 2] {
     super::stage1::group::quad_centre(q)

@@ -238,12 +238,32 @@ fn alignment(q: &[[f64; 2]; 4], directions: [[f64; 2]; 4]) -> f64 {
         / 4.0
 }
 
+/// A quad that four corners (or three and a completion) make, before the selection.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Candidate {
+    /// Indices of its corners in the level's list (a completed quad repeats its third).
+    pub corners: [usize; 4],
+    pub proposal: Proposal,
+}
+
 /// The marker ROIs that `corners` make, best first, each corner in at most one.
 pub fn group(
     corners: &[Corner],
     mask: &dyn Fn([f64; 2]) -> f64,
     options: &GroupOptions,
 ) -> Vec<Proposal> {
+    select(&candidates(corners, mask, options), &|_| false, &|_| false)
+        .into_iter()
+        .map(|c| c.proposal)
+        .collect()
+}
+
+/// Every quad that `corners` make, best first.
+pub fn candidates(
+    corners: &[Corner],
+    mask: &dyn Fn([f64; 2]) -> f64,
+    options: &GroupOptions,
+) -> Vec<Candidate> {
     let mut diagonals = Vec::new();
     for (i, a) in corners.iter().enumerate() {
         for (j, b) in corners.iter().enumerate().skip(i + 1) {
@@ -340,23 +360,57 @@ pub fn group(
         }
     }
     candidates.sort_by(|x, y| y.1.score.total_cmp(&x.1.score));
-    let mut used = vec![false; corners.len()];
-    let mut taken: Vec<Proposal> = Vec::new();
-    for (ids, p) in candidates {
-        if ids.iter().any(|&i| used[i]) {
+    candidates
+        .into_iter()
+        .map(|(corners, proposal)| Candidate { corners, proposal })
+        .collect()
+}
+
+/// The candidates taken best first, each corner in at most one quad and no quad's centre inside
+/// another's — clustering by geometry, not box NMS. Those `kept` says yes to are taken before
+/// any other (quads stage 2 read: their corners are spoken for), those `rejected` says no to are
+/// skipped (quads stage 2 could not read: their corners may belong to other quads).
+pub fn select(
+    candidates: &[Candidate],
+    kept: &dyn Fn(&Proposal) -> bool,
+    rejected: &dyn Fn(&Proposal) -> bool,
+) -> Vec<Candidate> {
+    let used_len = candidates
+        .iter()
+        .flat_map(|c| c.corners)
+        .max()
+        .map_or(0, |m| m + 1);
+    let mut used = vec![false; used_len];
+    let mut taken: Vec<Candidate> = Vec::new();
+    let firsts = candidates.iter().filter(|c| kept(&c.proposal));
+    for c in firsts.chain(candidates.iter().filter(|c| !kept(&c.proposal))) {
+        let p = &c.proposal;
+        if c.corners.iter().any(|&i| used[i]) || rejected(p) {
             continue;
         }
         let centre = quad_centre(&p.corners);
-        if taken
-            .iter()
-            .any(|t| inside(&t.corners, centre) || inside(&p.corners, quad_centre(&t.corners)))
-        {
+        if taken.iter().any(|t| {
+            inside(&t.proposal.corners, centre)
+                || inside(&p.corners, quad_centre(&t.proposal.corners))
+        }) {
             continue;
         }
-        ids.iter().for_each(|&i| used[i] = true);
-        taken.push(p);
+        c.corners.iter().for_each(|&i| used[i] = true);
+        taken.push(*c);
     }
     taken
+}
+
+/// Whether two proposals mark the same quad: every corner within a fifth of the shorter side of
+/// the other's, from any starting corner.
+pub fn same_quad(a: &Proposal, b: &Proposal) -> bool {
+    let side = shortest_side(&a.corners).min(shortest_side(&b.corners));
+    (0..4).any(|shift| {
+        (0..4).all(|i| {
+            let d = sub(a.corners[(i + shift) % 4], b.corners[i]);
+            d[0].hypot(d[1]) < 0.2 * side
+        })
+    })
 }
 
 /// No side under 15 % of the longest: flatter quads are slivers of clutter, not markers.
@@ -380,21 +434,10 @@ pub fn quad_centre(q: &[[f64; 2]; 4]) -> [f64; 2] {
 pub fn merge_duplicates(mut proposals: Vec<Proposal>) -> Vec<Proposal> {
     proposals.sort_by(|a, b| b.score.total_cmp(&a.score));
     let mut kept: Vec<Proposal> = Vec::new();
-    'next: for p in proposals {
-        for k in &kept {
-            let side = shortest_side(&k.corners).min(shortest_side(&p.corners));
-            // Any starting corner: the same quad may be listed from another corner.
-            let same = (0..4).any(|shift| {
-                (0..4).all(|i| {
-                    let d = sub(p.corners[(i + shift) % 4], k.corners[i]);
-                    d[0].hypot(d[1]) < 0.2 * side
-                })
-            });
-            if same {
-                continue 'next;
-            }
+    for p in proposals {
+        if !kept.iter().any(|k| same_quad(&p, k)) {
+            kept.push(p);
         }
-        kept.push(p);
     }
     kept
 }
@@ -430,6 +473,55 @@ mod tests {
     fn marker(corners: [[f64; 2]; 4]) -> Vec<Corner> {
         let c = crate::detect::stage1::targets::diagonal_crossing(&corners).unwrap();
         corners.iter().map(|&p| corner(p, c, 0.9)).collect()
+    }
+
+    fn candidate(corners: [usize; 4], quad: [[f64; 2]; 4], score: f64) -> Candidate {
+        Candidate {
+            corners,
+            proposal: Proposal {
+                corners: quad,
+                score,
+            },
+        }
+    }
+
+    /// Two markers side by side and a quad across them that takes a corner pair of each: the
+    /// first selection gives only the quad across; without it, both markers.
+    #[test]
+    fn a_rejected_quad_frees_the_corners_of_the_markers_it_took_them_from() {
+        let a = [[0.0, 0.0], [30.0, 0.0], [30.0, 30.0], [0.0, 30.0]];
+        let b = [[40.0, 0.0], [70.0, 0.0], [70.0, 30.0], [40.0, 30.0]];
+        let across = [[30.0, 0.0], [40.0, 0.0], [40.0, 30.0], [30.0, 30.0]];
+        let list = [
+            candidate([1, 4, 7, 2], across, 0.9),
+            candidate([0, 1, 2, 3], a, 0.8),
+            candidate([4, 5, 6, 7], b, 0.7),
+        ];
+        let first = select(&list, &|_| false, &|_| false);
+        assert_eq!(first.len(), 1);
+        assert_eq!(first[0].proposal.corners, across);
+        let rejected = first[0].proposal;
+        let second = select(&list, &|_| false, &|p| same_quad(p, &rejected));
+        let quads: Vec<_> = second.iter().map(|c| c.proposal.corners).collect();
+        assert_eq!(quads, vec![a, b]);
+        // A marker already read keeps its corners even where a better quad wants them.
+        let read = list[2].proposal;
+        let third = select(&list, &|p| same_quad(p, &read), &|_| false);
+        let quads: Vec<_> = third.iter().map(|c| c.proposal.corners).collect();
+        assert_eq!(quads, vec![b, a]);
+    }
+
+    #[test]
+    fn the_same_quad_from_another_starting_corner_is_the_same() {
+        let q = [[0.0, 0.0], [30.0, 0.0], [30.0, 30.0], [0.0, 30.0]];
+        let p = |corners| Proposal {
+            corners,
+            score: 1.0,
+        };
+        let turned = [[30.5, 0.0], [30.0, 30.0], [0.0, 29.0], [1.0, 0.0]];
+        assert!(same_quad(&p(q), &p(turned)));
+        let moved = q.map(|[x, y]| [x + 8.0, y]);
+        assert!(!same_quad(&p(q), &p(moved)));
     }
 
     #[test]

@@ -1,8 +1,11 @@
 //! Stage 1 on an image: an image pyramid (each level half the last, while its short side is at
-//! least [`MIN_LEVEL_SIDE`]), the network on every level, corners grouped into ROIs per level,
-//! the same ROI seen on two levels kept once.
+//! least [`MIN_LEVEL_SIDE`]; on request a level twice the image's size first, for tiny markers),
+//! the network on every level, corners grouped into ROIs per level, the same ROI seen on two
+//! levels kept once.
 
-use super::group::{group, merge_duplicates, GroupOptions, Maps, Proposal};
+use super::group::{
+    candidates, merge_duplicates, same_quad, select, Candidate, GroupOptions, Maps, Proposal,
+};
 use super::model_file::{self, Stage1Header};
 use super::net::{NetConfig, Stage1Net, MAPS};
 use super::STRIDE;
@@ -32,6 +35,10 @@ pub struct ProposeOptions {
     pub group: GroupOptions,
     /// Pyramid levels at most (1: the full resolution only).
     pub levels: usize,
+    /// Also run the network on the image enlarged twice (one more level, four times the first
+    /// level's cost): the network needs a marker about 20 px wide, so this finds markers down to
+    /// about 10 px — the tags on the AprilTag swarmathon photographs are 13–20 px.
+    pub upsample: bool,
 }
 
 impl Default for ProposeOptions {
@@ -39,6 +46,7 @@ impl Default for ProposeOptions {
         Self {
             group: GroupOptions::default(),
             levels: 4,
+            upsample: false,
         }
     }
 }
@@ -74,6 +82,63 @@ impl Stage1 {
     pub fn propose(&self, image: &GrayImage, options: &ProposeOptions) -> Vec<Proposal> {
         propose_with(&self.net, &self.device, image, options)
     }
+
+    /// The network on every pyramid level of `image`, for proposals in rounds
+    /// ([`Search::proposals`]).
+    pub fn search(&self, image: &GrayImage, options: &ProposeOptions) -> Search {
+        search_with(&self.net, &self.device, image, options)
+    }
+}
+
+/// Stage 1's quads on every level of one image. The first round of proposals is
+/// [`Stage1::propose`]'s; a quad that stage 2 cannot read may hold corners of real markers (a
+/// quad across two markers side by side takes a corner of each), so a later round selects again
+/// without it.
+pub struct Search {
+    levels: Vec<Vec<Candidate>>,
+}
+
+impl Search {
+    /// The ROIs selected with the `kept` quads first and without the `rejected` ones, best
+    /// first.
+    pub fn proposals(&self, kept: &[Proposal], rejected: &[Proposal]) -> Vec<Proposal> {
+        let kept = |p: &Proposal| kept.iter().any(|k| same_quad(p, k));
+        let rejected = |p: &Proposal| rejected.iter().any(|r| same_quad(p, r));
+        let mut out = Vec::new();
+        for level in &self.levels {
+            out.extend(
+                select(level, &kept, &rejected)
+                    .into_iter()
+                    .map(|c| c.proposal),
+            );
+        }
+        merge_duplicates(out)
+    }
+}
+
+/// [`Stage1::search`] with a given network.
+pub fn search_with(
+    net: &Stage1Net,
+    device: &Device,
+    image: &GrayImage,
+    options: &ProposeOptions,
+) -> Search {
+    let mut levels = pyramid(image, options.levels);
+    if options.upsample {
+        levels.insert(0, (double(image), 0.5));
+    }
+    let levels = levels
+        .into_iter()
+        .map(|(level, scale)| {
+            let maps = maps_of(net, device, std::slice::from_ref(&level))
+                .pop()
+                .expect("one image in, one out");
+            let corners = maps.corners(options.group.corner, scale);
+            let mask = |p: [f64; 2]| maps.mask_at(p, scale);
+            candidates(&corners, &mask, &options.group)
+        })
+        .collect();
+    Search { levels }
 }
 
 /// [`Stage1::propose`] with a given network (training validates with the one it trains).
@@ -83,16 +148,7 @@ pub fn propose_with(
     image: &GrayImage,
     options: &ProposeOptions,
 ) -> Vec<Proposal> {
-    let mut proposals = Vec::new();
-    for (level, scale) in pyramid(image, options.levels) {
-        let maps = maps_of(net, device, std::slice::from_ref(&level))
-            .pop()
-            .expect("one image in, one out");
-        let corners = maps.corners(options.group.corner, scale);
-        let mask = |p: [f64; 2]| maps.mask_at(p, scale);
-        proposals.extend(group(&corners, &mask, &options.group));
-    }
-    merge_duplicates(proposals)
+    search_with(net, device, image, options).proposals(&[], &[])
 }
 
 /// The image and its halvings, each with its scale (image pixels per level pixel).
@@ -106,6 +162,34 @@ pub fn pyramid(image: &GrayImage, levels: usize) -> Vec<(GrayImage, f64)> {
         let half = halve(last);
         let scale = scale * 2.0;
         out.push((half, scale));
+    }
+    out
+}
+
+/// The image at twice its size, bilinear. Level pixel `i` is centred on image coordinate
+/// `i / 2 − 1/4` (the convention of [`super::group::image_from_level`] at scale ½).
+pub fn double(image: &GrayImage) -> GrayImage {
+    let (w, h) = (image.width * 2, image.height * 2);
+    let mut out = GrayImage::new(w, h, 0);
+    // Along one axis a level pixel lies a quarter of an image pixel from its nearer source pixel:
+    // weights ¾ and ¼, with the border pixel repeated.
+    let taps = |i: u32, n: u32| -> (u32, u32) {
+        let near = i / 2;
+        let far = if i.is_multiple_of(2) {
+            near.saturating_sub(1)
+        } else {
+            (near + 1).min(n - 1)
+        };
+        (near, far)
+    };
+    let src = |x: u32, y: u32| image.pixels[(y * image.width + x) as usize] as u32;
+    for y in 0..h {
+        let (ny, fy) = taps(y, image.height);
+        for x in 0..w {
+            let (nx, fx) = taps(x, image.width);
+            let sum = 9 * src(nx, ny) + 3 * src(fx, ny) + 3 * src(nx, fy) + src(fx, fy);
+            out.pixels[(y * w + x) as usize] = ((sum + 8) / 16) as u8;
+        }
     }
     out
 }
@@ -176,4 +260,38 @@ pub fn maps_of(net: &Stage1Net, device: &Device, images: &[GrayImage]) -> Vec<Ma
         .try_into_vec::<f32>()
         .expect("f32 tensor");
     maps_from_raw(&raw, images.len(), pw / STRIDE, ph / STRIDE)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::detect::stage1::group::image_from_level;
+
+    /// A corner found on the doubled level has to land where it is in the image: a ramp doubled
+    /// reads, at each level pixel, the image's value at that pixel's image coordinate.
+    #[test]
+    fn the_doubled_level_keeps_image_coordinates() {
+        let mut image = GrayImage::new(20, 6, 0);
+        for y in 0..6 {
+            for x in 0..20 {
+                image.pixels[(y * 20 + x) as usize] = (10 * x + y) as u8;
+            }
+        }
+        let big = double(&image);
+        assert_eq!((big.width, big.height), (40, 12));
+        for (i, j) in [(1u32, 1u32), (2, 5), (9, 4), (20, 6), (37, 10)] {
+            let (x, y) = (
+                image_from_level(i as f64, 0.5),
+                image_from_level(j as f64, 0.5),
+            );
+            let expected = 10.0 * x + y;
+            let got = big.pixels[(j * 40 + i) as usize] as f64;
+            assert!(
+                (got - expected).abs() <= 0.5,
+                "({i}, {j}): {got} vs {expected}"
+            );
+        }
+        // Beyond the outermost pixel centres the border repeats.
+        assert_eq!(big.pixels[0], image.pixels[0]);
+    }
 }
