@@ -186,3 +186,76 @@ fn stage1_training_resumes_after_kill_9() {
     )
     .ok();
 }
+
+/// The AprilTag swarmathon photograph with 25 tags of 13–20 px on cubes side by side (AprilTag's
+/// own regression image; its detector's corners are the reference, `../shared/realimages`). The
+/// tiny-marker search (`--upsample`) finds far more of them than the default one, each where
+/// AprilTag finds it, and reads nothing else.
+#[test]
+fn tiny_tags_side_by_side_on_a_photograph_are_found_with_upsample() {
+    let folder = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../shared/realimages/apriltag_swarmathon");
+    let image = folder.join("34085369442_304b6bafd9_c.jpg");
+    let reference: Vec<[[f64; 2]; 4]> = std::fs::read_to_string(image.with_extension("txt"))
+        .unwrap()
+        .lines()
+        .map(|line| {
+            let v: Vec<f64> = line
+                .split(|c: char| !(c.is_ascii_digit() || c == '.' || c == '-'))
+                .filter(|s| !s.is_empty())
+                .map(|s| s.parse().unwrap())
+                .collect();
+            // AprilTag puts pixel centres at +0.5.
+            std::array::from_fn(|i| [v[1 + 2 * i] - 0.5, v[2 + 2 * i] - 0.5])
+        })
+        .collect();
+    assert_eq!(reference.len(), 25);
+    let dir = tempfile::tempdir().unwrap();
+    let found = |extra: &[&str]| -> usize {
+        let mut args = vec![
+            "detect",
+            image.to_str().unwrap(),
+            "--family",
+            "apriltag-36h11",
+            "--json",
+            "out.json",
+        ];
+        args.extend(extra);
+        tagsmith(dir.path(), &args).ok();
+        let out: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(dir.path().join("out.json")).unwrap()).unwrap();
+        let detections = out["images"][0]["detections"].as_array().unwrap().clone();
+        let corners = |d: &serde_json::Value| -> [[f64; 2]; 4] {
+            std::array::from_fn(|i| {
+                [
+                    d["corners"][i][0].as_f64().unwrap(),
+                    d["corners"][i][1].as_f64().unwrap(),
+                ]
+            })
+        };
+        // Any starting corner, either winding (AprilTag lists its corners anticlockwise).
+        let same = |a: &[[f64; 2]; 4], b: &[[f64; 2]; 4]| {
+            (0..4).any(|k| {
+                (0..4).all(|i| {
+                    let (p, q) = (a[(i + k) % 4], b[i]);
+                    (p[0] - q[0]).hypot(p[1] - q[1]) < 3.0
+                }) || (0..4).all(|i| {
+                    let (p, q) = (a[(k + 4 - i) % 4], b[i]);
+                    (p[0] - q[0]).hypot(p[1] - q[1]) < 3.0
+                })
+            })
+        };
+        for d in &detections {
+            assert_eq!(d["id"], 0, "every tag on the cubes is ID 0: {d}");
+        }
+        reference
+            .iter()
+            .filter(|r| detections.iter().any(|d| same(&corners(d), r)))
+            .count()
+    };
+    let (default, upsampled) = (found(&[]), found(&["--upsample"]));
+    assert!(
+        upsampled >= 2 * default && upsampled >= 15,
+        "of 25 tags: {default} found by default, {upsampled} with --upsample"
+    );
+}

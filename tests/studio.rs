@@ -697,6 +697,44 @@ fn the_detect_panel_lists_what_the_cli_detects_on_a_sample() {
     );
 }
 
+/// Detect panel → "tiny markers": the detector runs again with stage 1 also on the image
+/// enlarged twice, and lists what `tagsmith detect --upsample` finds on the same photograph.
+#[test]
+fn the_tiny_markers_switch_searches_as_detect_upsample_does() {
+    const SAMPLE: &str = "apriltag-36h11-swarmathon.jpg";
+    let s = setup();
+    let mut h = studio(&s);
+    h.get_by_label("Detect").click();
+    h.run();
+    h.get_by_label(SAMPLE).click();
+    h.run();
+    let count =
+        |h: &Harness<'static, Studio>| h.state().detect.result.as_ref().unwrap().found.len();
+    let default = count(&h);
+    h.get_by_label("tiny markers").click();
+    h.run();
+    assert!(h.state().detect.options_upsample());
+    let upsampled = count(&h);
+    assert!(upsampled >= default, "{upsampled} with, {default} without");
+
+    let image = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../assets/samples/")
+        .join(SAMPLE);
+    let out = s.out.with_file_name("cli.json");
+    let status = std::process::Command::new(env!("CARGO_BIN_EXE_tagsmith"))
+        .args(["detect", image.to_str().unwrap(), "--upsample", "--json"])
+        .arg(&out)
+        .stdout(std::process::Stdio::null())
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let cli: serde_json::Value = serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap();
+    assert_eq!(
+        cli["images"][0]["detections"].as_array().unwrap().len(),
+        upsampled
+    );
+}
+
 /// Train panel: an unsaved design is refused in words; once saved, a run starts in the
 /// background, shows progress and writes checkpoints while the window keeps drawing; Stop leaves
 /// a resumable run, Resume finishes it and the model is attached next to the family file.

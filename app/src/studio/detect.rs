@@ -135,6 +135,13 @@ impl Default for DetectState {
 }
 
 impl DetectState {
+    /// Whether the loaded detector searches the image enlarged twice too.
+    pub fn options_upsample(&self) -> bool {
+        self.detector
+            .as_ref()
+            .is_some_and(|(_, d)| d.options.propose.upsample)
+    }
+
     fn chosen(&self) -> Vec<String> {
         let mut chosen: Vec<String> = self
             .families

@@ -153,7 +153,7 @@ impl Detector {
         // only the ROIs not read yet go to stage 2.
         let (mut read, mut failed): (Vec<Proposal>, Vec<Proposal>) = (Vec::new(), Vec::new());
         let mut found: Vec<Found> = Vec::new();
-        for _ in 0..ROUNDS {
+        for round in 0..ROUNDS {
             let kept: Vec<Proposal> = found.iter().map(|f| f.proposal).collect();
             let batch: Vec<Proposal> = search
                 .proposals(&kept, &failed)
@@ -163,7 +163,7 @@ impl Detector {
             if batch.is_empty() {
                 break;
             }
-            let best = self.read_all(image, &batch, camera, &mut timings);
+            let best = self.read_all(image, &batch, camera, round > 0, &mut timings);
             for (proposal, best) in batch.iter().zip(best) {
                 match best {
                     Some(f) => found.push(f),
@@ -195,11 +195,17 @@ impl Detector {
     }
 
     /// Stage 2 of every family on every proposal: for each, the family that reads it, if any.
+    /// `later`: the proposals of a later round, which stage 1 ranked below ROIs no family could
+    /// read — more of them are clutter, and clutter decodes as some code at the edge of the
+    /// correction limit (a 36-symbol read at random lies within 5 symbols of one of 36h11's 587
+    /// codes in four turns once in 66 reads, within 2 once in 44 000), so their codes may need
+    /// at most half the family's corrections.
     fn read_all(
         &self,
         image: &GrayImage,
         proposals: &[Proposal],
         camera: Option<&Camera>,
+        later: bool,
         timings: &mut Timings,
     ) -> Vec<Option<Found>> {
         // The first stage-2 pass of each family over every proposal in one batch; only the ROIs
@@ -225,6 +231,10 @@ impl Detector {
                     Some((i, marker))
                 })
                 .collect();
+            let limit = reader.family.codebook().max_correction();
+            let read = read
+                .into_iter()
+                .filter(|(_, m)| !later || m.corrected_errors <= limit / 2);
             for (i, marker) in read {
                 // Two families reading one ROI: the one whose code needed fewer corrections.
                 if best[i]
