@@ -618,17 +618,42 @@ fn the_families_panel_shows_each_family_drawn_with_its_numbers() {
     assert_eq!(spec(&h).name, "aruco-6x6_250-copy");
 }
 
+/// Detect panel → a shipped sample photograph (the first click also loads the models).
+fn detect_sample(h: &mut Harness<'static, Studio>, sample: &str) {
+    h.get_by_label("Detect").click();
+    h.run();
+    assert_eq!(h.state().panel, Panel::Detect);
+    h.get_by_label(sample).click();
+    h.run();
+}
+
+/// `tagsmith detect SAMPLE ARGS… --json` of this build: the detections file.
+fn cli_detect(sample: &str, args: &[&str]) -> serde_json::Value {
+    let dir = tempfile::tempdir().unwrap();
+    let image = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../assets/samples/")
+        .join(sample);
+    let out = dir.path().join("cli.json");
+    let status = std::process::Command::new(env!("CARGO_BIN_EXE_tagsmith"))
+        .arg("detect")
+        .arg(&image)
+        .args(args)
+        .arg("--json")
+        .arg(&out)
+        .stdout(std::process::Stdio::null())
+        .status()
+        .unwrap();
+    assert!(status.success());
+    serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap()
+}
+
 /// Detect panel → a sample photograph: the panel lists what `tagsmith detect` reports on the
 /// same image, and saves it in the CLI's format.
 #[test]
 fn the_detect_panel_lists_what_the_cli_detects_on_a_sample() {
     let s = setup();
     let mut h = studio(&s);
-    h.get_by_label("Detect").click();
-    h.run();
-    assert_eq!(h.state().panel, Panel::Detect);
-    h.get_by_label("aruco-6x6_250-tutorial.jpg").click();
-    h.run();
+    detect_sample(&mut h, "aruco-6x6_250-tutorial.jpg");
     let listed: Vec<(String, usize, [[f64; 2]; 4])> = h
         .state()
         .detect
@@ -650,22 +675,7 @@ fn the_detect_panel_lists_what_the_cli_detects_on_a_sample() {
         assert!(off < 1.5, "axes {off:.2} px from the marker's centre");
     }
 
-    let dir = tempfile::tempdir().unwrap();
-    let image = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../assets/samples/aruco-6x6_250-tutorial.jpg");
-    let out = dir.path().join("cli.json");
-    let status = std::process::Command::new(env!("CARGO_BIN_EXE_tagsmith"))
-        .args([
-            "detect",
-            image.to_str().unwrap(),
-            "--json",
-            out.to_str().unwrap(),
-        ])
-        .stdout(std::process::Stdio::null())
-        .status()
-        .unwrap();
-    assert!(status.success());
-    let cli: serde_json::Value = serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap();
+    let cli = cli_detect("aruco-6x6_250-tutorial.jpg", &[]);
     let cli: Vec<(String, usize, [[f64; 2]; 4])> = cli["images"][0]["detections"]
         .as_array()
         .unwrap()
@@ -704,10 +714,7 @@ fn the_tiny_markers_switch_searches_as_detect_upsample_does() {
     const SAMPLE: &str = "apriltag-36h11-swarmathon.jpg";
     let s = setup();
     let mut h = studio(&s);
-    h.get_by_label("Detect").click();
-    h.run();
-    h.get_by_label(SAMPLE).click();
-    h.run();
+    detect_sample(&mut h, SAMPLE);
     let count =
         |h: &Harness<'static, Studio>| h.state().detect.result.as_ref().unwrap().found.len();
     let default = count(&h);
@@ -717,18 +724,7 @@ fn the_tiny_markers_switch_searches_as_detect_upsample_does() {
     let upsampled = count(&h);
     assert!(upsampled >= default, "{upsampled} with, {default} without");
 
-    let image = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../assets/samples/")
-        .join(SAMPLE);
-    let out = s.out.with_file_name("cli.json");
-    let status = std::process::Command::new(env!("CARGO_BIN_EXE_tagsmith"))
-        .args(["detect", image.to_str().unwrap(), "--upsample", "--json"])
-        .arg(&out)
-        .stdout(std::process::Stdio::null())
-        .status()
-        .unwrap();
-    assert!(status.success());
-    let cli: serde_json::Value = serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap();
+    let cli = cli_detect(SAMPLE, &["--upsample"]);
     assert_eq!(
         cli["images"][0]["detections"].as_array().unwrap().len(),
         upsampled
@@ -886,11 +882,7 @@ fn detect_latency_in_the_app_is_the_clis() {
     };
     let s = setup();
     let mut h = studio(&s);
-    h.get_by_label("Detect").click();
-    h.run();
-    // The first click loads the models.
-    h.get_by_label(SAMPLE).click();
-    h.run();
+    detect_sample(&mut h, SAMPLE);
     let (mut frames, mut detector) = (Vec::new(), Vec::new());
     for _ in 0..RUNS {
         let clock = Instant::now();
