@@ -8,6 +8,7 @@ use clap::{Args, ValueEnum};
 use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
+use tagsmith::detect::stage1::pipeline::SHIPPED_STAGE1;
 use tagsmith::train::stage::TrainStage;
 use tagsmith::train::stage1::RoiStage;
 use tagsmith::train::stage2::KeypointStage;
@@ -61,6 +62,11 @@ pub struct TrainArgs {
     /// Continue from the output folder's checkpoint.
     #[arg(long)]
     pub resume: bool,
+    /// `--stage roi`: the weights to start from — a stage-1 model file, `shipped` (the shipped
+    /// model: fine-tuning) or `none` (fresh weights) [default: shipped with a FAMILY, none
+    /// without]. The network's width is then the model's.
+    #[arg(long)]
+    pub init: Option<String>,
     /// Channels of the network's widest layers [range: 8..=256].
     #[arg(long, default_value_t = TrainConfig::default().width,
           value_parser = in_range(8..=MAX_WIDTH))]
@@ -109,6 +115,11 @@ impl TrainArgs {
         let stop = AtomicBool::new(false);
         match self.stage {
             Stage::Keypoints => {
+                if self.init.is_some() {
+                    return Err(CliError::bad_input(
+                        "--init is for --stage roi (stage 2 trains from fresh weights)",
+                    ));
+                }
                 let family = family.ok_or_else(|| {
                     CliError::bad_input("--stage keypoints needs a FAMILY to train for")
                 })?;
@@ -143,6 +154,29 @@ impl TrainArgs {
                 let stage = match &family {
                     Some(f) => RoiStage::for_families(vec![f.clone()], config.width),
                     None => RoiStage::new(config.width).map_err(CliError::failure)?,
+                };
+                let init = self.init.as_deref().unwrap_or(if family.is_some() {
+                    "shipped"
+                } else {
+                    "none"
+                });
+                let stage = match init {
+                    "none" => stage,
+                    "shipped" => stage
+                        .starting_from(SHIPPED_STAGE1.to_vec(), "shipped stage-1 model")
+                        .map_err(CliError::failure)?,
+                    path => {
+                        let bytes = std::fs::read(path).map_err(|e| {
+                            CliError::bad_input(format!("--init {path}: cannot read it: {e}"))
+                        })?;
+                        stage
+                            .starting_from(bytes, path)
+                            .map_err(CliError::bad_input)?
+                    }
+                };
+                let config = TrainConfig {
+                    width: stage.net().width,
+                    ..config
                 };
                 let out = self.out.unwrap_or_else(|| match &family {
                     Some(f) => PathBuf::from(format!("runs/{}-roi", f.name())),

@@ -32,8 +32,10 @@ pub struct DetectorOptions {
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
 pub struct Timings {
     pub stage1_ms: f64,
-    /// Stage 2 on every proposal for every family, refinement and pose included.
+    /// Stage 2 on every proposal for every family, refinement and pose included (and stage 1's
+    /// selections after the first round).
     pub stage2_ms: f64,
+    /// Stage-1 ROIs read, over every round.
     pub proposals: usize,
     /// Stage-2 reads started (proposals × families).
     pub reads: usize,
@@ -163,9 +165,9 @@ impl Detector {
             if batch.is_empty() {
                 break;
             }
-            let best = self.read_all(image, &batch, camera, round > 0, &mut timings);
-            for (proposal, best) in batch.iter().zip(best) {
-                match best {
+            let reads = self.read_all(image, &batch, camera, round > 0, &mut timings);
+            for (proposal, read_as) in batch.iter().zip(reads) {
+                match read_as {
                     Some(f) => found.push(f),
                     None => failed.push(*proposal),
                 }

@@ -48,6 +48,8 @@ pub const SUBJECT: &str = "square markers";
 pub struct RoiStage {
     families: Vec<Family>,
     net: NetConfig,
+    /// A model file's weights to start from instead of fresh ones (fine-tuning), and its name.
+    start: Option<(Vec<u8>, String)>,
 }
 
 /// What a stage-1 report says about the network.
@@ -57,6 +59,9 @@ pub struct RoiInfo {
     /// Training scene side in pixels.
     pub scene: u32,
     pub families: Vec<String>,
+    /// The model whose weights the run started from, when it did not start from fresh ones.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub started_from: Option<String>,
 }
 
 /// `count` random square designs drawn from `seed` (designs the generator cannot turn into a
@@ -88,6 +93,7 @@ impl RoiStage {
         Ok(Self {
             families,
             net: NetConfig { width },
+            start: None,
         })
     }
 
@@ -96,7 +102,23 @@ impl RoiStage {
         Self {
             families,
             net: NetConfig { width },
+            start: None,
         }
+    }
+
+    /// Starts from the weights of the stage-1 model file `bytes` (called `name` in errors and
+    /// the report) instead of fresh ones: fine-tuning. The network's width is the model's.
+    pub fn starting_from(mut self, bytes: Vec<u8>, name: &str) -> Result<Self, String> {
+        let (_, header) =
+            model_file::from_bytes(&bytes, name, &Device::flex()).map_err(|e| e.to_string())?;
+        self.net = header.net;
+        self.start = Some((bytes, name.to_string()));
+        Ok(self)
+    }
+
+    /// The network's settings (those of the model it starts from, if any).
+    pub fn net(&self) -> NetConfig {
+        self.net
     }
 
     fn family_names(&self) -> Vec<String> {
@@ -124,6 +146,7 @@ impl TrainStage for RoiStage {
             net: self.net,
             scene: SCENE,
             families: self.family_names(),
+            started_from: self.start.as_ref().map(|(_, name)| name.clone()),
         }
     }
 
@@ -132,7 +155,15 @@ impl TrainStage for RoiStage {
     }
 
     fn init(&self, device: &Device) -> Stage1Net {
-        self.net.init(device)
+        match &self.start {
+            // Checked when the stage was made.
+            Some((bytes, name)) => {
+                model_file::from_bytes(bytes, name, device)
+                    .expect("the starting model loaded before")
+                    .0
+            }
+            None => self.net.init(device),
+        }
     }
 
     fn sample(&self, seed: u64) -> Result<SceneSample, String> {
