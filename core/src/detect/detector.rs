@@ -1,4 +1,4 @@
-//! The full detector (docs/ARCHITECTURE.md §9.12): stage 1 proposes ROIs in the whole image,
+//! The full detector (docs/ARCHITECTURE.md §9.8): stage 1 proposes ROIs in the whole image,
 //! stage 2 of every requested family reads each ROI, and a ROI that no family decodes is
 //! dropped — a false ROI costs stage-2 passes, never a wrong ID. The CLI, the harness and the
 //! studio all detect through [`Detector::detect`].

@@ -1,11 +1,12 @@
-//! From stage 1's maps to marker ROIs (docs/ARCHITECTURE.md §9.11), plain Rust.
+//! From stage 1's maps to marker ROIs (docs/ARCHITECTURE.md §9.8), plain Rust.
 //!
 //! Corners are the heat map's local maxima, placed by their offsets. Each carries the direction
 //! to its marker's centre, and the centre is where the diagonals cross, so two corners that
 //! point at each other along the line joining them are the two ends of a diagonal. Two
 //! diagonals whose segments cross make a quad; the marker mask has to cover its inside. Quads are
 //! taken best first, each corner used once — clustering by geometry rather than NMS over boxes,
-//! in the spirit of the paper's corner assignment.
+//! in the spirit of the paper's corner assignment. The candidates are kept ([`candidates`]) so
+//! that the detector can select again without quads stage 2 could not read ([`select`]).
 
 use super::STRIDE;
 use crate::geometry::inside_polygon as inside;

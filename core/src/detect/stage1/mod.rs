@@ -1,4 +1,4 @@
-//! Stage 1 of the learned detector: a whole image → marker ROIs (docs/ARCHITECTURE.md §9.11).
+//! Stage 1 of the learned detector: a whole image → marker ROIs (docs/ARCHITECTURE.md §9.8).
 //! One model serves every square family: it finds marker corners, their directions to the
 //! marker centre and the marker mask; [`group`] turns them into ROIs, and stage 2 reads each.
 //!

@@ -1,4 +1,4 @@
-//! The stage-1 network (docs/ARCHITECTURE.md §9.11): a depthwise-separable trunk to stride 4 on
+//! The stage-1 network (docs/ARCHITECTURE.md §9.8): a depthwise-separable trunk to stride 4 on
 //! the whole (downscaled) image, dilations 1, 2 and 4 for a ≈ 75 px receptive field, and one
 //! head on the stride-4 grid with six maps: a marker-corner heat map (one logit), the corner's
 //! offset within its cell (2), the unit direction from the corner to the marker's centre (2) and
