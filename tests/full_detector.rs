@@ -193,8 +193,7 @@ fn stage1_training_resumes_after_kill_9() {
 /// AprilTag finds it, and reads nothing else.
 #[test]
 fn tiny_tags_side_by_side_on_a_photograph_are_found_with_upsample() {
-    let folder = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/realimages/apriltag_swarmathon");
+    let folder = workspace().join("../shared/realimages/apriltag_swarmathon");
     let image = folder.join("34085369442_304b6bafd9_c.jpg");
     let reference: Vec<[[f64; 2]; 4]> = std::fs::read_to_string(image.with_extension("txt"))
         .unwrap()
@@ -287,8 +286,7 @@ fn a_familys_stage_1_is_fine_tuned_from_the_shipped_weights() {
         args.extend(extra);
         tagsmith(dir.path(), &args).ok();
     };
-    let sample = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../assets/samples/aruco-6x6_250-tutorial.jpg");
+    let sample = workspace().join("assets/samples/aruco-6x6_250-tutorial.jpg");
     let found = |model: &str| -> usize {
         let args = [
             "detect",
@@ -314,8 +312,7 @@ fn a_familys_stage_1_is_fine_tuned_from_the_shipped_weights() {
     train("fresh", &["--init", "none"]);
     assert_eq!(found("fresh/model.bin"), 0);
 
-    let stage2 = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../assets/models/aruco-6x6_250.stage2.bin");
+    let stage2 = workspace().join("assets/models/aruco-6x6_250.stage2.bin");
     let run = tagsmith(
         dir.path(),
         &[

@@ -247,18 +247,6 @@ pub struct Candidate {
     pub proposal: Proposal,
 }
 
-/// The marker ROIs that `corners` make, best first, each corner in at most one.
-pub fn group(
-    corners: &[Corner],
-    mask: &dyn Fn([f64; 2]) -> f64,
-    options: &GroupOptions,
-) -> Vec<Proposal> {
-    select(&candidates(corners, mask, options), &|_| false, &|_| false)
-        .into_iter()
-        .map(|c| c.proposal)
-        .collect()
-}
-
 /// Every quad that `corners` make, best first.
 pub fn candidates(
     corners: &[Corner],
@@ -383,8 +371,9 @@ pub fn select(
         .map_or(0, |m| m + 1);
     let mut used = vec![false; used_len];
     let mut taken: Vec<Candidate> = Vec::new();
-    let firsts = candidates.iter().filter(|c| kept(&c.proposal));
-    for c in firsts.chain(candidates.iter().filter(|c| !kept(&c.proposal))) {
+    let (firsts, rest): (Vec<&Candidate>, Vec<&Candidate>) =
+        candidates.iter().partition(|c| kept(&c.proposal));
+    for c in firsts.into_iter().chain(rest) {
         let p = &c.proposal;
         if c.corners.iter().any(|&i| used[i]) || rejected(p) {
             continue;
@@ -455,6 +444,18 @@ fn shortest_side(q: &[[f64; 2]; 4]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The marker ROIs that `corners` make in one selection, best first.
+    fn group(
+        corners: &[Corner],
+        mask: &dyn Fn([f64; 2]) -> f64,
+        options: &GroupOptions,
+    ) -> Vec<Proposal> {
+        select(&candidates(corners, mask, options), &|_| false, &|_| false)
+            .into_iter()
+            .map(|c| c.proposal)
+            .collect()
+    }
 
     fn corner(at: [f64; 2], centre: [f64; 2], score: f64) -> Corner {
         let d = sub(centre, at);
