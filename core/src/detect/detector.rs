@@ -174,6 +174,33 @@ impl Detector {
             }
             read.extend(batch);
         }
+        // Then the quads the image outlines that no read marker covers, in rounds the same way.
+        for _ in 0..OUTLINE_ROUNDS {
+            let kept: Vec<Proposal> = found.iter().map(|f| f.proposal).collect();
+            let batch: Vec<Proposal> = search
+                .outlined(&kept, &failed)
+                .into_iter()
+                .filter(|p| {
+                    !read.iter().any(|r| same_quad(p, r))
+                        && !found.iter().any(|f| {
+                            inside(&f.marker.corners, centre(&p.corners))
+                                || inside(&p.corners, centre(&f.marker.corners))
+                        })
+                })
+                .take(MAX_OUTLINED_READS)
+                .collect();
+            if batch.is_empty() {
+                break;
+            }
+            let reads = self.read_all(image, &batch, camera, true, &mut timings);
+            for (proposal, read_as) in batch.iter().zip(reads) {
+                match read_as {
+                    Some(f) => found.push(f),
+                    None => failed.push(*proposal),
+                }
+            }
+            read.extend(batch);
+        }
         timings.proposals = read.len();
         // Markers do not overlap: of two reads where either's centre lies inside the other (the
         // same marker read twice, or a quad over part of a marker and its surroundings read as
@@ -258,6 +285,10 @@ impl Detector {
 /// Stage-1 selections per image at most: the first, and two more without the ROIs no family
 /// read.
 const ROUNDS: usize = 3;
+
+/// Selections of outlined quads per image at most, and reads in each.
+const OUTLINE_ROUNDS: usize = 3;
+const MAX_OUTLINED_READS: usize = 4;
 
 fn centre(q: &[[f64; 2]; 4]) -> [f64; 2] {
     super::stage1::group::quad_centre(q)

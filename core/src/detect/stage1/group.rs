@@ -92,6 +92,22 @@ impl Maps {
             + get(x0 + 1.0, y0 + 1.0) * fx * fy
     }
 
+    /// The highest mask value in the 3 × 3 cells around an image point.
+    pub fn mask_near(&self, p: [f64; 2], scale: f64) -> f64 {
+        let s = STRIDE as f64;
+        let cell = |v: f64, n: usize| {
+            ((level_from_image(v, scale) / s).floor().max(0.0) as usize).min(n - 1)
+        };
+        let (cx, cy) = (cell(p[0], self.columns), cell(p[1], self.rows));
+        let mut most = 0.0f32;
+        for y in cy.saturating_sub(1)..=(cy + 1).min(self.rows - 1) {
+            for x in cx.saturating_sub(1)..=(cx + 1).min(self.columns - 1) {
+                most = most.max(self.mask[y * self.columns + x]);
+            }
+        }
+        most as f64
+    }
+
     /// Local maxima of the heat map above `threshold`, in image pixels (`scale` image pixels per
     /// network input pixel).
     pub fn corners(&self, threshold: f32, scale: f64) -> Vec<Corner> {
@@ -175,7 +191,7 @@ fn crossing(a: [f64; 2], b: [f64; 2], c: [f64; 2], d: [f64; 2]) -> Option<(f64, 
 }
 
 /// The mean and the lowest of `mask` at nine points spread over the quad's inside.
-fn mask_inside(q: &[[f64; 2]; 4], mask: &dyn Fn([f64; 2]) -> f64) -> (f64, f64) {
+pub fn mask_inside(q: &[[f64; 2]; 4], mask: &dyn Fn([f64; 2]) -> f64) -> (f64, f64) {
     let (mut sum, mut lowest) = (0.0, f64::MAX);
     for v in [0.25, 0.5, 0.75] {
         for u in [0.25, 0.5, 0.75] {

@@ -9,6 +9,7 @@
 pub const STRIDE: usize = 4;
 
 pub mod group;
+pub mod outline;
 pub mod targets;
 
 #[cfg(feature = "detect")]

@@ -4,10 +4,12 @@
 //! levels kept once.
 
 use super::group::{
-    candidates, merge_duplicates, same_quad, select, Candidate, GroupOptions, Maps, Proposal,
+    candidates, mask_inside, merge_duplicates, same_quad, select, Candidate, Corner, GroupOptions,
+    Maps, Proposal,
 };
 use super::model_file::{self, Stage1Header};
 use super::net::{NetConfig, Stage1Net, MAPS};
+use super::outline::{outline_candidates, OutlineOptions};
 use super::STRIDE;
 use crate::detect::stage2::model_file::ModelError;
 use crate::detect::stage2::normalise_patch;
@@ -39,6 +41,8 @@ pub struct ProposeOptions {
     /// level's cost): the network needs a marker about 20 px wide, so this finds markers down to
     /// about 10 px — the tags on the AprilTag swarmathon photographs are 13–20 px.
     pub upsample: bool,
+    /// The search for quads the image outlines ([`super::outline`]); `None` skips it.
+    pub outline: Option<OutlineOptions>,
 }
 
 impl Default for ProposeOptions {
@@ -47,6 +51,7 @@ impl Default for ProposeOptions {
             group: GroupOptions::default(),
             levels: 4,
             upsample: false,
+            outline: Some(OutlineOptions::default()),
         }
     }
 }
@@ -96,6 +101,10 @@ impl Stage1 {
 /// without it.
 pub struct Search {
     levels: Vec<Vec<Candidate>>,
+    /// The quads the image outlines, from the corners of every level (best first).
+    outlined: Vec<Candidate>,
+    /// Each level's maps and scale (image pixels per level pixel).
+    maps: Vec<(Maps, f64)>,
 }
 
 impl Search {
@@ -114,6 +123,25 @@ impl Search {
         }
         merge_duplicates(out)
     }
+
+    /// The quads the image outlines ([`super::outline`]), selected like [`Search::proposals`]:
+    /// those `kept` says yes to first (their corners are spoken for), without the `rejected`.
+    pub fn outlined(&self, kept: &[Proposal], rejected: &[Proposal]) -> Vec<Proposal> {
+        let kept = |p: &Proposal| kept.iter().any(|k| same_quad(p, k));
+        let rejected = |p: &Proposal| rejected.iter().any(|r| same_quad(p, r));
+        select(&self.outlined, &kept, &rejected)
+            .into_iter()
+            .map(|c| c.proposal)
+            .collect()
+    }
+
+    /// How much of the quad the network's mask calls marker, at the level that says most.
+    pub fn mask_support(&self, q: &[[f64; 2]; 4]) -> f64 {
+        self.maps
+            .iter()
+            .map(|(maps, scale)| mask_inside(q, &|p| maps.mask_at(p, *scale)).0)
+            .fold(0.0, f64::max)
+    }
 }
 
 /// [`Stage1::search`] with a given network.
@@ -127,18 +155,51 @@ pub fn search_with(
     if options.upsample {
         levels.insert(0, (double(image), 0.5));
     }
+    let mut weak_corners: Vec<Corner> = Vec::new();
+    let mut all_maps = Vec::new();
     let levels = levels
         .into_iter()
         .map(|(level, scale)| {
             let maps = maps_of(net, device, std::slice::from_ref(&level))
                 .pop()
                 .expect("one image in, one out");
+            if let Some(outline) = &options.outline {
+                // A corner with no marker beside it is one of the background's.
+                let beside_marker = |c: &Corner| maps.mask_near(c.at, scale) >= outline.mask;
+                for c in maps
+                    .corners(outline.corner, scale)
+                    .into_iter()
+                    .filter(beside_marker)
+                {
+                    // A corner seen on a finer level is placed better.
+                    let seen =
+                        |o: &Corner| (o.at[0] - c.at[0]).hypot(o.at[1] - c.at[1]) < 2.0 * scale;
+                    if !weak_corners.iter().any(seen) {
+                        weak_corners.push(c);
+                    }
+                }
+            }
             let corners = maps.corners(options.group.corner, scale);
             let mask = |p: [f64; 2]| maps.mask_at(p, scale);
-            candidates(&corners, &mask, &options.group)
+            let found = candidates(&corners, &mask, &options.group);
+            all_maps.push((maps, scale));
+            found
         })
         .collect();
-    Search { levels }
+    let mut search = Search {
+        levels,
+        outlined: Vec::new(),
+        maps: all_maps,
+    };
+    if let Some(outline) = &options.outline {
+        weak_corners.sort_by(|a, b| b.score.total_cmp(&a.score));
+        let mut outlined = outline_candidates(image, &weak_corners, outline);
+        // Squares and slabs of clutter outline themselves as well as markers do; the network's
+        // mask, too weak over a steep marker to group its corners, still tells them apart.
+        outlined.retain(|c| search.mask_support(&c.proposal.corners) >= outline.mask);
+        search.outlined = outlined;
+    }
+    search
 }
 
 /// [`Stage1::propose`] with a given network (training validates with the one it trains).
