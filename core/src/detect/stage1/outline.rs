@@ -255,3 +255,128 @@ pub fn outline_candidates(
     out.sort_by(|x, y| y.proposal.score.total_cmp(&x.proposal.score));
     out
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::inside_polygon;
+    use rand::{Rng, SeedableRng};
+
+    /// `fill` inside the quad, `ground` elsewhere, with sensor noise of `sigma`.
+    fn draw(q: &[[f64; 2]; 4], ground: u8, fill: u8, sigma: f64) -> GrayImage {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let mut image = GrayImage::new(160, 120, ground);
+        for y in 0..120u32 {
+            for x in 0..160u32 {
+                let base = if inside_polygon(q, [x as f64, y as f64]) {
+                    fill
+                } else {
+                    ground
+                };
+                // Box–Muller from two uniforms.
+                let (u, v): (f64, f64) = (rng.random::<f64>().max(1e-12), rng.random::<f64>());
+                let n = sigma * (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos();
+                image.pixels[(y * 160 + x) as usize] =
+                    (base as f64 + n).round().clamp(0.0, 255.0) as u8;
+            }
+        }
+        image
+    }
+
+    fn corner(at: [f64; 2], score: f64) -> Corner {
+        Corner {
+            at,
+            direction: [1.0, 0.0],
+            score,
+        }
+    }
+
+    /// A steep view: 90 × 14 px, clockwise, with stage 1's corners a pixel or two off.
+    const SLIVER: [[f64; 2]; 4] = [[30.0, 50.0], [120.0, 42.0], [122.0, 58.0], [32.0, 66.0]];
+
+    fn sliver_corners() -> Vec<Corner> {
+        let off = [[1.5, -1.0], [-1.0, 1.5], [1.0, 1.0], [-1.5, -0.5]];
+        let mut corners: Vec<Corner> = SLIVER
+            .iter()
+            .zip(off)
+            .map(|(p, o)| corner([p[0] + o[0], p[1] + o[1]], 0.2))
+            .collect();
+        // Two of the background's, more confident than the marker's.
+        corners.insert(1, corner([140.0, 100.0], 0.6));
+        corners.insert(0, corner([10.0, 10.0], 0.5));
+        corners
+    }
+
+    fn matches(found: &[[f64; 2]; 4], truth: &[[f64; 2]; 4]) -> bool {
+        (0..4).any(|k| {
+            (0..4).all(|i| {
+                let (p, q) = (found[(i + k) % 4], truth[i]);
+                (p[0] - q[0]).hypot(p[1] - q[1]) < 3.0
+            })
+        })
+    }
+
+    #[test]
+    fn a_dark_sliver_on_light_ground_is_outlined_clockwise() {
+        let image = draw(&SLIVER, 210, 30, 2.0);
+        let found = outline_candidates(&image, &sliver_corners(), &OutlineOptions::default());
+        let best = found
+            .first()
+            .expect("the sliver is outlined")
+            .proposal
+            .corners;
+        assert!(matches(&best, &SLIVER), "{best:?}");
+        // Stage 2 takes ROIs clockwise in the image (y down): positive shoelace sum.
+        let area: f64 = (0..4)
+            .map(|i| best[i][0] * best[(i + 1) % 4][1] - best[(i + 1) % 4][0] * best[i][1])
+            .sum();
+        assert!(area > 0.0);
+    }
+
+    #[test]
+    fn a_light_quad_on_dark_ground_is_outlined_too() {
+        let image = draw(&SLIVER, 30, 210, 2.0);
+        let found = outline_candidates(&image, &sliver_corners(), &OutlineOptions::default());
+        assert!(found.iter().any(|c| matches(&c.proposal.corners, &SLIVER)));
+    }
+
+    #[test]
+    fn corners_with_no_edges_between_them_outline_nothing() {
+        let flat = draw(&SLIVER, 120, 120, 2.0);
+        assert!(
+            outline_candidates(&flat, &sliver_corners(), &OutlineOptions::default()).is_empty()
+        );
+        // Edges of the wrong shape: the same corners over a square elsewhere.
+        let elsewhere = draw(
+            &[[60.0, 80.0], [100.0, 80.0], [100.0, 115.0], [60.0, 115.0]],
+            210,
+            30,
+            2.0,
+        );
+        assert!(
+            outline_candidates(&elsewhere, &sliver_corners(), &OutlineOptions::default())
+                .is_empty()
+        );
+    }
+
+    #[test]
+    fn the_noise_estimate_follows_the_sensor_noise() {
+        for sigma in [0.0, 4.0, 12.0] {
+            let got = noise_sigma(&draw(&SLIVER, 150, 150, sigma)) as f64;
+            assert!(
+                (got - sigma).abs() <= 0.15 * sigma + 0.3,
+                "σ {sigma}: {got}"
+            );
+        }
+    }
+
+    #[test]
+    fn an_image_too_noisy_for_the_side_test_is_not_searched() {
+        // σ 25: a 180-level border would still pass, but so would noise anywhere.
+        let noisy = draw(&SLIVER, 210, 30, 25.0);
+        assert!(noise_sigma(&noisy) * NOISE_STEPS > MAX_CONTRAST);
+        assert!(
+            outline_candidates(&noisy, &sliver_corners(), &OutlineOptions::default()).is_empty()
+        );
+    }
+}
