@@ -20,8 +20,8 @@ pub struct OutlineOptions {
     /// Heat-map confidence of the corners it joins: lower than the grouping's, since the image,
     /// not the network, vouches for the quad.
     pub corner: f32,
-    /// Corners considered at most, the most confident first (the search is cubic in the worst
-    /// case of a cluttered image).
+    /// Corners considered at most, the most confident first (every two of them are tested for a
+    /// side).
     pub max_corners: usize,
     /// Sides followed from one corner at most, the strongest first.
     pub max_sides: usize,
@@ -112,7 +112,7 @@ fn side_steps(image: &GrayImage, a: [f64; 2], b: [f64; 2], contrast: f32) -> (f3
         return (0.0, 0.0);
     }
     let (mut right, mut left) = (f32::MAX, f32::MAX);
-    // The middle third first: most pairs of corners are not a side, and it says so soonest.
+    // The middle third first, then stop as soon as neither side can pass.
     for third in [1, 0, 2] {
         let (mut most, mut least) = (f32::MIN, f32::MAX);
         for offset in -reach..=reach {
@@ -205,11 +205,12 @@ pub fn outline_candidates(
     let mut out = Vec::new();
     for a in 0..n {
         for &(b, ab) in &sides[a] {
+            // Each cycle once: from its lowest corner.
             if b < a {
                 continue;
             }
             for &(c, bc) in &sides[b] {
-                if c < a || c == b {
+                if c <= a || c == b {
                     continue;
                 }
                 for &(d, cd) in &sides[c] {
