@@ -731,6 +731,31 @@ fn the_tiny_markers_switch_searches_as_detect_upsample_does() {
     );
 }
 
+/// Detect panel → "steep views" (on by default): switched off, the detector runs again without
+/// the quads the image outlines and lists what `tagsmith detect --no-outline` finds on the same
+/// photograph; switched on it lists what plain `tagsmith detect` finds.
+#[test]
+fn the_steep_views_switch_searches_as_detect_no_outline_does() {
+    const SAMPLE: &str = "apriltag-36h11-swarmathon.jpg";
+    let s = setup();
+    let mut h = studio(&s);
+    detect_sample(&mut h, SAMPLE);
+    assert!(h.state().detect.options_outline());
+    let count =
+        |h: &Harness<'static, Studio>| h.state().detect.result.as_ref().unwrap().found.len();
+    let cli_count = |args: &[&str]| {
+        cli_detect(SAMPLE, args)["images"][0]["detections"]
+            .as_array()
+            .unwrap()
+            .len()
+    };
+    assert_eq!(count(&h), cli_count(&[]));
+    h.get_by_label("steep views").click();
+    h.run();
+    assert!(!h.state().detect.options_outline());
+    assert_eq!(count(&h), cli_count(&["--no-outline"]));
+}
+
 /// Train panel: an unsaved design is refused in words; once saved, a run starts in the
 /// background, shows progress and writes checkpoints while the window keeps drawing; Stop leaves
 /// a resumable run, Resume finishes it and the model is attached next to the family file.

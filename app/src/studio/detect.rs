@@ -31,6 +31,7 @@ use egui::{Color32, Pos2, Rect, Stroke, Vec2};
 use tagsmith::detect::annotate::{annotate_all, Overlay};
 use tagsmith::detect::detector::FamilyReader;
 use tagsmith::detect::stage1::group::GroupOptions;
+use tagsmith::detect::stage1::outline::OutlineOptions;
 use tagsmith::detect::stage1::Stage1;
 use tagsmith::detect::stage2::{shipped_families, Stage2};
 use tagsmith::detect::{BenchDetector, DetectionsFile, Detector, Found, ImageDetections, Timings};
@@ -62,6 +63,8 @@ pub struct DetectState {
     pub corner_threshold: f32,
     /// Stage 1 also on the image enlarged twice (markers down to about 10 px).
     pub upsample: bool,
+    /// Stage 1's weaker corners also joined where the image outlines a quad (steep views).
+    pub outline: bool,
     pub image: Option<LoadedImage>,
     pub result: Option<DetectResult>,
     /// The loaded detector and the families it was built for.
@@ -123,6 +126,7 @@ impl Default for DetectState {
             design: None,
             corner_threshold: GroupOptions::default().corner,
             upsample: false,
+            outline: true,
             image: None,
             result: None,
             detector: None,
@@ -140,6 +144,13 @@ impl DetectState {
         self.detector
             .as_ref()
             .is_some_and(|(_, d)| d.options.propose.upsample)
+    }
+
+    /// Whether the loaded detector also reads the quads the image outlines.
+    pub fn options_outline(&self) -> bool {
+        self.detector
+            .as_ref()
+            .is_some_and(|(_, d)| d.options.propose.outline.is_some())
     }
 
     fn chosen(&self) -> Vec<String> {
@@ -205,6 +216,7 @@ impl DetectState {
         let (_, detector) = self.detector.as_mut().expect("built above");
         detector.options.propose.group.corner = self.corner_threshold;
         detector.options.propose.upsample = self.upsample;
+        detector.options.propose.outline = self.outline.then(OutlineOptions::default);
         Ok(())
     }
 
@@ -475,6 +487,17 @@ pub fn show(studio: &mut Studio, ui: &mut egui::Ui, ctx: &egui::Context) {
             .on_hover_text(
                 "stage 1 also looks at the image enlarged twice: finds markers down to about \
                  10 px wide, stage 1 takes about five times as long",
+            )
+            .changed()
+        {
+            state.stale = true;
+        }
+        if ui
+            .checkbox(&mut state.outline, "steep views")
+            .on_hover_text(
+                "stage 1's weaker corners are also joined where the image shows a quad's sides: \
+                 finds markers seen nearly edge-on, for a few milliseconds (detect --no-outline \
+                 turns it off)",
             )
             .changed()
         {
