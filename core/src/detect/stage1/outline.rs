@@ -60,6 +60,37 @@ pub const NOISE_STEPS: f32 = 3.0;
 /// usable light; an image noisier than a third of this is not searched.
 const MAX_CONTRAST: f32 = 60.0;
 
+/// The step a side needs as a share of the image's range of gray levels ([`contrast_range`]): a
+/// marker's border spans most of it, while in a photograph of high contrast almost any two
+/// corners have some weaker step between them that the offset search lines up with.
+const RANGE_SHARE: f32 = 0.25;
+
+/// The spread of the image's gray levels: the 98th percentile minus the 2nd, over every other
+/// pixel of every other row.
+pub fn contrast_range(image: &GrayImage) -> f32 {
+    let w = image.width as usize;
+    let mut histogram = [0usize; 256];
+    let mut count = 0;
+    for row in image.pixels.chunks(w.max(1)).step_by(2) {
+        for &v in row.iter().step_by(2) {
+            histogram[v as usize] += 1;
+            count += 1;
+        }
+    }
+    let level = |share: f64| {
+        let target = (share * count as f64) as usize;
+        let mut seen = 0;
+        histogram
+            .iter()
+            .position(|&n| {
+                seen += n;
+                seen > target
+            })
+            .unwrap_or(255) as f32
+    };
+    level(0.98) - level(0.02)
+}
+
 /// The image's noise σ in gray levels (Immerkær 1996: the mean absolute response to a mask that
 /// cancels every plane and the 3 × 3 Laplacian of smooth shading), over every other pixel.
 pub fn noise_sigma(image: &GrayImage) -> f32 {
@@ -172,7 +203,10 @@ pub fn outline_candidates(
     corners: &[Corner],
     options: &OutlineOptions,
 ) -> Vec<Candidate> {
-    let contrast = options.contrast.max(NOISE_STEPS * noise_sigma(image));
+    let contrast = options
+        .contrast
+        .max(NOISE_STEPS * noise_sigma(image))
+        .max(RANGE_SHARE * contrast_range(image));
     if contrast > MAX_CONTRAST {
         // Noise this strong passes the test anywhere a border would: it cannot tell sides from
         // clutter, and only costs time (the network's own grouping still runs).

@@ -4,8 +4,8 @@
 //! levels kept once.
 
 use super::group::{
-    candidates, mask_inside, merge_duplicates, same_quad, select, Candidate, Corner, GroupOptions,
-    Maps, Proposal,
+    candidates, mask_inside, merge_duplicates, quad_centre, same_quad, select, Candidate, Corner,
+    GroupOptions, Maps, Proposal,
 };
 use super::model_file::{self, Stage1Header};
 use super::net::{NetConfig, Stage1Net, MAPS};
@@ -13,6 +13,7 @@ use super::outline::{outline_candidates, OutlineOptions};
 use super::STRIDE;
 use crate::detect::stage2::model_file::ModelError;
 use crate::detect::stage2::normalise_patch;
+use crate::geometry::inside_polygon;
 use crate::image::GrayImage;
 use burn::tensor::{Device, Tensor, TensorData};
 use std::path::Path;
@@ -101,10 +102,27 @@ impl Stage1 {
 /// without it.
 pub struct Search {
     levels: Vec<Vec<Candidate>>,
-    /// The quads the image outlines, from the corners of every level (best first).
-    outlined: Vec<Candidate>,
+    /// Corners of every level for the outline search (most confident first), and its settings.
+    weak_corners: Vec<Corner>,
+    outline: Option<OutlineOptions>,
     /// Each level's maps and scale (image pixels per level pixel).
     maps: Vec<(Maps, f64)>,
+}
+
+/// The quads an image outlines ([`Search::outline`]), best first.
+pub struct Outlined(Vec<Candidate>);
+
+impl Outlined {
+    /// Selected like [`Search::proposals`]: those `kept` says yes to first (their corners are
+    /// spoken for), without the `rejected`.
+    pub fn proposals(&self, kept: &[Proposal], rejected: &[Proposal]) -> Vec<Proposal> {
+        let kept = |p: &Proposal| kept.iter().any(|k| same_quad(p, k));
+        let rejected = |p: &Proposal| rejected.iter().any(|r| same_quad(p, r));
+        select(&self.0, &kept, &rejected)
+            .into_iter()
+            .map(|c| c.proposal)
+            .collect()
+    }
 }
 
 impl Search {
@@ -124,15 +142,33 @@ impl Search {
         merge_duplicates(out)
     }
 
-    /// The quads the image outlines ([`super::outline`]), selected like [`Search::proposals`]:
-    /// those `kept` says yes to first (their corners are spoken for), without the `rejected`.
-    pub fn outlined(&self, kept: &[Proposal], rejected: &[Proposal]) -> Vec<Proposal> {
-        let kept = |p: &Proposal| kept.iter().any(|k| same_quad(p, k));
-        let rejected = |p: &Proposal| rejected.iter().any(|r| same_quad(p, r));
-        select(&self.outlined, &kept, &rejected)
-            .into_iter()
-            .map(|c| c.proposal)
-            .collect()
+    /// The quads `image` outlines between stage 1's weaker corners ([`super::outline`]; none
+    /// when the search is off). Corners on or inside the `covered` quads (markers already read)
+    /// are left out: a photograph full of read tags would otherwise spend most of the search
+    /// outlining their borders and data cells again.
+    pub fn outline(&self, image: &GrayImage, covered: &[[[f64; 2]; 4]]) -> Outlined {
+        let Some(options) = &self.outline else {
+            return Outlined(Vec::new());
+        };
+        // A fifth larger about its centre, for the corners stage 1 placed just outside it.
+        let grown: Vec<[[f64; 2]; 4]> = covered
+            .iter()
+            .map(|q| {
+                let c = quad_centre(q);
+                q.map(|p| [c[0] + 1.2 * (p[0] - c[0]), c[1] + 1.2 * (p[1] - c[1])])
+            })
+            .collect();
+        let free: Vec<Corner> = self
+            .weak_corners
+            .iter()
+            .filter(|c| !grown.iter().any(|q| inside_polygon(q, c.at)))
+            .copied()
+            .collect();
+        let mut outlined = outline_candidates(image, &free, options);
+        // Squares and slabs of clutter outline themselves as well as markers do; the network's
+        // mask, too weak over a steep marker to group its corners, still tells them apart.
+        outlined.retain(|c| self.mask_support(&c.proposal.corners) >= options.mask);
+        Outlined(outlined)
     }
 
     /// How much of the quad the network's mask calls marker, at the level that says most.
@@ -186,20 +222,13 @@ pub fn search_with(
             found
         })
         .collect();
-    let mut search = Search {
+    weak_corners.sort_by(|a, b| b.score.total_cmp(&a.score));
+    Search {
         levels,
-        outlined: Vec::new(),
+        weak_corners,
+        outline: options.outline,
         maps: all_maps,
-    };
-    if let Some(outline) = &options.outline {
-        weak_corners.sort_by(|a, b| b.score.total_cmp(&a.score));
-        let mut outlined = outline_candidates(image, &weak_corners, outline);
-        // Squares and slabs of clutter outline themselves as well as markers do; the network's
-        // mask, too weak over a steep marker to group its corners, still tells them apart.
-        outlined.retain(|c| search.mask_support(&c.proposal.corners) >= outline.mask);
-        search.outlined = outlined;
     }
-    search
 }
 
 /// [`Stage1::propose`] with a given network (training validates with the one it trains).
