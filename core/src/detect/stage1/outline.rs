@@ -406,6 +406,18 @@ mod tests {
     }
 
     #[test]
+    fn the_gray_range_ignores_the_extreme_two_percent() {
+        let mut image = draw(&SLIVER, 200, 40, 0.0);
+        // A few glints and shadows (under 2 % of the pixels each) do not widen the range.
+        for i in 0..100 {
+            image.pixels[i * 7] = 255;
+            image.pixels[i * 7 + 3] = 0;
+        }
+        assert_eq!(contrast_range(&image), 160.0);
+        assert_eq!(contrast_range(&draw(&SLIVER, 90, 90, 0.0)), 0.0);
+    }
+
+    #[test]
     fn an_image_too_noisy_for_the_side_test_is_not_searched() {
         // σ 25: a 180-level border would still pass, but so would noise anywhere.
         let noisy = draw(&SLIVER, 210, 30, 25.0);
