@@ -628,6 +628,19 @@ fn detect_sample(h: &mut Harness<'static, Studio>, sample: &str) {
 }
 
 /// `tagsmith detect SAMPLE ARGS… --json` of this build: the detections file.
+/// How many markers the Detect panel lists.
+fn listed_count(h: &Harness<'static, Studio>) -> usize {
+    h.state().detect.result.as_ref().unwrap().found.len()
+}
+
+/// How many markers `tagsmith detect SAMPLE ARGS` reports.
+fn cli_count(sample: &str, args: &[&str]) -> usize {
+    cli_detect(sample, args)["images"][0]["detections"]
+        .as_array()
+        .unwrap()
+        .len()
+}
+
 fn cli_detect(sample: &str, args: &[&str]) -> serde_json::Value {
     let dir = tempfile::tempdir().unwrap();
     let image = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -715,20 +728,13 @@ fn the_tiny_markers_switch_searches_as_detect_upsample_does() {
     let s = setup();
     let mut h = studio(&s);
     detect_sample(&mut h, SAMPLE);
-    let count =
-        |h: &Harness<'static, Studio>| h.state().detect.result.as_ref().unwrap().found.len();
-    let default = count(&h);
+    let default = listed_count(&h);
     h.get_by_label("tiny markers").click();
     h.run();
     assert!(h.state().detect.options_upsample());
-    let upsampled = count(&h);
+    let upsampled = listed_count(&h);
     assert!(upsampled >= default, "{upsampled} with, {default} without");
-
-    let cli = cli_detect(SAMPLE, &["--upsample"]);
-    assert_eq!(
-        cli["images"][0]["detections"].as_array().unwrap().len(),
-        upsampled
-    );
+    assert_eq!(cli_count(SAMPLE, &["--upsample"]), upsampled);
 }
 
 /// Detect panel → "steep views" (on by default): switched off, the detector runs again without
@@ -741,19 +747,11 @@ fn the_steep_views_switch_searches_as_detect_no_outline_does() {
     let mut h = studio(&s);
     detect_sample(&mut h, SAMPLE);
     assert!(h.state().detect.options_outline());
-    let count =
-        |h: &Harness<'static, Studio>| h.state().detect.result.as_ref().unwrap().found.len();
-    let cli_count = |args: &[&str]| {
-        cli_detect(SAMPLE, args)["images"][0]["detections"]
-            .as_array()
-            .unwrap()
-            .len()
-    };
-    assert_eq!(count(&h), cli_count(&[]));
+    assert_eq!(listed_count(&h), cli_count(SAMPLE, &[]));
     h.get_by_label("steep views").click();
     h.run();
     assert!(!h.state().detect.options_outline());
-    assert_eq!(count(&h), cli_count(&["--no-outline"]));
+    assert_eq!(listed_count(&h), cli_count(SAMPLE, &["--no-outline"]));
 }
 
 /// Train panel: an unsaved design is refused in words; once saved, a run starts in the

@@ -69,7 +69,7 @@ pub struct DetectArgs {
     pub upsample: bool,
     /// Skip the search for quads whose sides are edges in the image (stage 1's weaker corners
     /// joined by what the image shows; finds steep views the network's grouping misses, for
-    /// 10–40 % of stage 1's time).
+    /// 0–5 ms on a typical image and about 25 ms on a cluttered photograph).
     #[arg(long)]
     pub no_outline: bool,
     /// Write the detections file (the harness's format, for `tagsmith eval score`).

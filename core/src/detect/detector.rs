@@ -3,7 +3,7 @@
 //! dropped — a false ROI costs stage-2 passes, never a wrong ID. The CLI, the harness and the
 //! studio all detect through [`Detector::detect`].
 
-use super::stage1::group::{same_quad, Proposal};
+use super::stage1::group::{nested, same_quad, Proposal};
 use super::stage1::{ProposeOptions, Stage1};
 use super::stage2::model_file::ModelError;
 use super::stage2::{shipped_model, ReadOptions, Stage2, Stage2Result};
@@ -153,44 +153,35 @@ impl Detector {
         // Rounds: a ROI no family reads may have taken corners of real markers (a quad across
         // two markers side by side), so stage 1 selects again without the ROIs that failed, and
         // only the ROIs not read yet go to stage 2.
-        let (mut read, mut failed): (Vec<Proposal>, Vec<Proposal>) = (Vec::new(), Vec::new());
-        let mut found: Vec<Found> = Vec::new();
+        let mut rounds = Rounds::default();
         for round in 0..ROUNDS {
-            let kept: Vec<Proposal> = found.iter().map(|f| f.proposal).collect();
             let batch: Vec<Proposal> = search
-                .proposals(&kept, &failed)
+                .proposals(&rounds.kept(), &rounds.failed)
                 .into_iter()
-                .filter(|p| !read.iter().any(|r| same_quad(p, r)))
+                .filter(|p| rounds.is_new(p))
                 .collect();
             if batch.is_empty() {
                 break;
             }
             let reads = self.read_all(image, &batch, camera, round > 0, &mut timings);
-            for (proposal, read_as) in batch.iter().zip(reads) {
-                match read_as {
-                    Some(f) => found.push(f),
-                    None => failed.push(*proposal),
-                }
-            }
-            read.extend(batch);
+            rounds.record(batch, reads);
         }
         // Then the quads the image outlines away from the markers read, in rounds the same way.
         // The search is stage 1's work, and its time is counted there.
         let outline_clock = Stopwatch::start();
-        let covered: Vec<[[f64; 2]; 4]> = found.iter().map(|f| f.marker.corners).collect();
+        let covered: Vec<[[f64; 2]; 4]> = rounds.found.iter().map(|f| f.marker.corners).collect();
         let outlined = search.outline(image, &covered);
         let outline_ms = outline_clock.ms();
         for _ in 0..OUTLINE_ROUNDS {
-            let kept: Vec<Proposal> = found.iter().map(|f| f.proposal).collect();
             let batch: Vec<Proposal> = outlined
-                .proposals(&kept, &failed)
+                .proposals(&rounds.kept(), &rounds.failed)
                 .into_iter()
                 .filter(|p| {
-                    !read.iter().any(|r| same_quad(p, r))
-                        && !found.iter().any(|f| {
-                            inside(&f.marker.corners, centre(&p.corners))
-                                || inside(&p.corners, centre(&f.marker.corners))
-                        })
+                    rounds.is_new(p)
+                        && !rounds
+                            .found
+                            .iter()
+                            .any(|f| nested(&f.marker.corners, &p.corners))
                 })
                 .take(MAX_OUTLINED_READS)
                 .collect();
@@ -198,24 +189,17 @@ impl Detector {
                 break;
             }
             let reads = self.read_all(image, &batch, camera, true, &mut timings);
-            for (proposal, read_as) in batch.iter().zip(reads) {
-                match read_as {
-                    Some(f) => found.push(f),
-                    None => failed.push(*proposal),
-                }
-            }
-            read.extend(batch);
+            rounds.record(batch, reads);
         }
-        timings.proposals = read.len();
+        timings.proposals = rounds.read.len();
         // Markers do not overlap: of two reads where either's centre lies inside the other (the
         // same marker read twice, or a quad over part of a marker and its surroundings read as
         // another code) the one whose code needed fewer corrections stays, the first on a tie.
         let mut kept: Vec<Found> = Vec::new();
-        for f in found {
-            let overlapping = kept.iter().position(|g| {
-                inside(&g.marker.corners, centre(&f.marker.corners))
-                    || inside(&f.marker.corners, centre(&g.marker.corners))
-            });
+        for f in rounds.found {
+            let overlapping = kept
+                .iter()
+                .position(|g| nested(&g.marker.corners, &f.marker.corners));
             match overlapping {
                 None => kept.push(f),
                 Some(k) if f.marker.corrected_errors < kept[k].marker.corrected_errors => {
@@ -296,12 +280,34 @@ const ROUNDS: usize = 3;
 const OUTLINE_ROUNDS: usize = 3;
 const MAX_OUTLINED_READS: usize = 4;
 
-fn centre(q: &[[f64; 2]; 4]) -> [f64; 2] {
-    super::stage1::group::quad_centre(q)
+/// What the rounds of one image have sent to stage 2 so far.
+#[derive(Default)]
+struct Rounds {
+    read: Vec<Proposal>,
+    failed: Vec<Proposal>,
+    found: Vec<Found>,
 }
 
-fn inside(q: &[[f64; 2]; 4], p: [f64; 2]) -> bool {
-    crate::geometry::inside_polygon(q, p)
+impl Rounds {
+    /// The ROIs read as markers: their corners are spoken for in the next selection.
+    fn kept(&self) -> Vec<Proposal> {
+        self.found.iter().map(|f| f.proposal).collect()
+    }
+
+    fn is_new(&self, p: &Proposal) -> bool {
+        !self.read.iter().any(|r| same_quad(p, r))
+    }
+
+    /// Files each proposal of a batch as found or failed by its read.
+    fn record(&mut self, batch: Vec<Proposal>, reads: Vec<Option<Found>>) {
+        for (proposal, read_as) in batch.iter().zip(reads) {
+            match read_as {
+                Some(f) => self.found.push(f),
+                None => self.failed.push(*proposal),
+            }
+        }
+        self.read.extend(batch);
+    }
 }
 
 impl Found {

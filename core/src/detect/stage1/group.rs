@@ -394,17 +394,22 @@ pub fn select(
         if c.corners.iter().any(|&i| used[i]) || rejected(p) {
             continue;
         }
-        let centre = quad_centre(&p.corners);
-        if taken.iter().any(|t| {
-            inside(&t.proposal.corners, centre)
-                || inside(&p.corners, quad_centre(&t.proposal.corners))
-        }) {
+        if taken
+            .iter()
+            .any(|t| nested(&t.proposal.corners, &p.corners))
+        {
             continue;
         }
         c.corners.iter().for_each(|&i| used[i] = true);
         taken.push(*c);
     }
     taken
+}
+
+/// Whether either quad's centre lies inside the other: the same marker twice, or a quad over
+/// part of one — markers do not overlap.
+pub fn nested(a: &[[f64; 2]; 4], b: &[[f64; 2]; 4]) -> bool {
+    inside(a, quad_centre(b)) || inside(b, quad_centre(a))
 }
 
 /// Whether two proposals mark the same quad: every corner within a fifth of the shorter side of

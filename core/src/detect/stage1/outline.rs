@@ -54,7 +54,7 @@ const STEP: f32 = 3.0;
 /// The step a side needs, in units of the image's noise σ: the difference of two noisy samples
 /// has σ√2, and the test keeps the best of up to 11 offsets, whose maximum lies near 1.6 of
 /// those σ√2 — so 3σ lets noise alone pass about one test in a hundred instead of most of them.
-pub const NOISE_STEPS: f32 = 3.0;
+const NOISE_STEPS: f32 = 3.0;
 
 /// The steepest the side test gets, in gray levels: a marker's border steps by 100 or more in
 /// usable light; an image noisier than a third of this is not searched.
@@ -67,7 +67,7 @@ const RANGE_SHARE: f32 = 0.25;
 
 /// The spread of the image's gray levels: the 98th percentile minus the 2nd, over every other
 /// pixel of every other row.
-pub fn contrast_range(image: &GrayImage) -> f32 {
+fn contrast_range(image: &GrayImage) -> f32 {
     let w = image.width as usize;
     let mut histogram = [0usize; 256];
     let mut count = 0;
@@ -93,7 +93,7 @@ pub fn contrast_range(image: &GrayImage) -> f32 {
 
 /// The image's noise σ in gray levels (Immerkær 1996: the mean absolute response to a mask that
 /// cancels every plane and the 3 × 3 Laplacian of smooth shading), over every other pixel.
-pub fn noise_sigma(image: &GrayImage) -> f32 {
+fn noise_sigma(image: &GrayImage) -> f32 {
     let (w, h) = (image.width as usize, image.height as usize);
     if w < 3 || h < 3 {
         return 0.0;

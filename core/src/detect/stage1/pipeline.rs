@@ -116,29 +116,34 @@ impl Outlined {
     /// Selected like [`Search::proposals`]: those `kept` says yes to first (their corners are
     /// spoken for), without the `rejected`.
     pub fn proposals(&self, kept: &[Proposal], rejected: &[Proposal]) -> Vec<Proposal> {
-        let kept = |p: &Proposal| kept.iter().any(|k| same_quad(p, k));
-        let rejected = |p: &Proposal| rejected.iter().any(|r| same_quad(p, r));
-        select(&self.0, &kept, &rejected)
-            .into_iter()
-            .map(|c| c.proposal)
-            .collect()
+        select_around(&self.0, kept, rejected)
     }
+}
+
+/// [`select`] with the quads that mark the same as a `kept` one taken first and those that mark
+/// the same as a `rejected` one skipped.
+fn select_around(
+    candidates: &[Candidate],
+    kept: &[Proposal],
+    rejected: &[Proposal],
+) -> Vec<Proposal> {
+    let kept = |p: &Proposal| kept.iter().any(|k| same_quad(p, k));
+    let rejected = |p: &Proposal| rejected.iter().any(|r| same_quad(p, r));
+    select(candidates, &kept, &rejected)
+        .into_iter()
+        .map(|c| c.proposal)
+        .collect()
 }
 
 impl Search {
     /// The ROIs selected with the `kept` quads first and without the `rejected` ones, best
     /// first.
     pub fn proposals(&self, kept: &[Proposal], rejected: &[Proposal]) -> Vec<Proposal> {
-        let kept = |p: &Proposal| kept.iter().any(|k| same_quad(p, k));
-        let rejected = |p: &Proposal| rejected.iter().any(|r| same_quad(p, r));
-        let mut out = Vec::new();
-        for level in &self.levels {
-            out.extend(
-                select(level, &kept, &rejected)
-                    .into_iter()
-                    .map(|c| c.proposal),
-            );
-        }
+        let out = self
+            .levels
+            .iter()
+            .flat_map(|level| select_around(level, kept, rejected))
+            .collect();
         merge_duplicates(out)
     }
 
@@ -172,7 +177,7 @@ impl Search {
     }
 
     /// How much of the quad the network's mask calls marker, at the level that says most.
-    pub fn mask_support(&self, q: &[[f64; 2]; 4]) -> f64 {
+    fn mask_support(&self, q: &[[f64; 2]; 4]) -> f64 {
         self.maps
             .iter()
             .map(|(maps, scale)| mask_inside(q, &|p| maps.mask_at(p, *scale)).0)
