@@ -189,8 +189,9 @@ fn stage1_training_resumes_after_kill_9() {
 
 /// The AprilTag swarmathon photograph with 25 tags of 13–20 px on cubes side by side (AprilTag's
 /// own regression image; its detector's corners are the reference, `../shared/realimages`). The
-/// tiny-marker search (`--upsample`) finds far more of them than the default one, each where
-/// AprilTag finds it, and reads nothing else.
+/// tiny-marker search (`--upsample`) finds nearly all of them and the default search, through
+/// the quads traced around dark blobs, most of them — each where AprilTag finds it, reading
+/// nothing else.
 #[test]
 fn tiny_tags_side_by_side_on_a_photograph_are_found_with_upsample() {
     let folder = workspace().join("../shared/realimages/apriltag_swarmathon");
@@ -254,7 +255,7 @@ fn tiny_tags_side_by_side_on_a_photograph_are_found_with_upsample() {
     };
     let (default, upsampled) = (found(&[]), found(&["--upsample"]));
     assert!(
-        upsampled >= 2 * default && upsampled >= 15,
+        upsampled >= default && upsampled >= 20 && default >= 12,
         "of 25 tags: {default} found by default, {upsampled} with --upsample"
     );
 }
@@ -262,7 +263,10 @@ fn tiny_tags_side_by_side_on_a_photograph_are_found_with_upsample() {
 /// `train FAMILY --stage roi` fine-tunes the shipped stage 1 (`--init shipped` is its default):
 /// two steps at a small learning rate still find the six markers of the ArUco photograph, as the
 /// shipped model does, and the report says where the run started; from fresh weights
-/// (`--init none`) two steps find nothing. A model of the other stage is refused by name.
+/// (`--init none`) two steps find nothing. Both are asked for the network's own proposals
+/// (`--no-outline`): the image searches find these six markers by the image alone once the
+/// mask says "marker" — and an untrained mask says 0.5 everywhere. A model of the other stage is
+/// refused by name.
 #[test]
 fn a_familys_stage_1_is_fine_tuned_from_the_shipped_weights() {
     let dir = tempfile::tempdir().unwrap();
@@ -295,6 +299,7 @@ fn a_familys_stage_1_is_fine_tuned_from_the_shipped_weights() {
             "aruco-6x6_250",
             "--stage1",
             model,
+            "--no-outline",
             "--json",
             "out.json",
         ];

@@ -67,9 +67,10 @@ pub struct DetectArgs {
     /// (from about 20 px), at four times stage 1's cost on the full-size image.
     #[arg(long)]
     pub upsample: bool,
-    /// Skip the search for quads whose sides are edges in the image (stage 1's weaker corners
-    /// joined by what the image shows; finds steep views the network's grouping misses, for
-    /// 0–5 ms on a typical image and about 25 ms on a cluttered photograph).
+    /// Skip the searches that look at the image itself for the steep views the network's
+    /// grouping misses: stage 1's weaker corners joined where the image shows a quad's sides,
+    /// and quads traced around dark blobs the network's mask calls marker (together a few ms on
+    /// a typical image, about 30 ms on a cluttered photograph).
     #[arg(long)]
     pub no_outline: bool,
     /// Write the detections file (the harness's format, for `tagsmith eval score`).
@@ -264,9 +265,10 @@ impl DetectArgs {
         };
         detector.options.propose.group.corner = self.corner_threshold;
         detector.options.propose.upsample = self.upsample;
-        if self.no_outline {
-            detector.options.propose.outline = None;
-        }
+        detector
+            .options
+            .propose
+            .set_image_searches(!self.no_outline);
         if let Some(dir) = &self.annotate {
             std::fs::create_dir_all(dir)
                 .with_context(|| format!("cannot create the folder {}", dir.display()))
@@ -355,7 +357,7 @@ pub struct DetectSetArgs {
     /// With --full: stage 1 also on the image enlarged twice (as `detect --upsample`).
     #[arg(long)]
     pub upsample: bool,
-    /// With --full: no outlined quads (as `detect --no-outline`).
+    /// With --full: no outlined or traced quads (as `detect --no-outline`).
     #[arg(long)]
     pub no_outline: bool,
     #[arg(long, default_value_t = 0)]
@@ -404,9 +406,10 @@ impl DetectSetArgs {
             detector.camera = Some(s.camera);
             detector.options.read = read;
             detector.options.propose.upsample = self.upsample;
-            if self.no_outline {
-                detector.options.propose.outline = None;
-            }
+            detector
+                .options
+                .propose
+                .set_image_searches(!self.no_outline);
             let file = set::run_detector(&self.set, &s, &mut detector, &include)?;
             let json = serde_json::to_string_pretty(&file).failure()?;
             write_output(&self.output, json.as_bytes())?;

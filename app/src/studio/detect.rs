@@ -31,7 +31,6 @@ use egui::{Color32, Pos2, Rect, Stroke, Vec2};
 use tagsmith::detect::annotate::{annotate_all, Overlay};
 use tagsmith::detect::detector::FamilyReader;
 use tagsmith::detect::stage1::group::GroupOptions;
-use tagsmith::detect::stage1::outline::OutlineOptions;
 use tagsmith::detect::stage1::Stage1;
 use tagsmith::detect::stage2::{shipped_families, Stage2};
 use tagsmith::detect::{BenchDetector, DetectionsFile, Detector, Found, ImageDetections, Timings};
@@ -63,7 +62,8 @@ pub struct DetectState {
     pub corner_threshold: f32,
     /// Stage 1 also on the image enlarged twice (markers down to about 10 px).
     pub upsample: bool,
-    /// Stage 1's weaker corners also joined where the image outlines a quad (steep views).
+    /// The searches that look at the image itself for steep views: stage 1's weaker corners
+    /// joined where the image outlines a quad, and quads traced around dark blobs.
     pub outline: bool,
     pub image: Option<LoadedImage>,
     pub result: Option<DetectResult>,
@@ -150,7 +150,7 @@ impl DetectState {
     pub fn options_outline(&self) -> bool {
         self.detector
             .as_ref()
-            .is_some_and(|(_, d)| d.options.propose.outline.is_some())
+            .is_some_and(|(_, d)| d.options.propose.image_searches())
     }
 
     fn chosen(&self) -> Vec<String> {
@@ -216,7 +216,7 @@ impl DetectState {
         let (_, detector) = self.detector.as_mut().expect("built above");
         detector.options.propose.group.corner = self.corner_threshold;
         detector.options.propose.upsample = self.upsample;
-        detector.options.propose.outline = self.outline.then(OutlineOptions::default);
+        detector.options.propose.set_image_searches(self.outline);
         Ok(())
     }
 
@@ -495,9 +495,9 @@ pub fn show(studio: &mut Studio, ui: &mut egui::Ui, ctx: &egui::Context) {
         if ui
             .checkbox(&mut state.outline, "steep views")
             .on_hover_text(
-                "stage 1's weaker corners are also joined where the image shows a quad's sides: \
-                 finds markers seen nearly edge-on, for a few milliseconds (detect --no-outline \
-                 turns it off)",
+                "stage 1's weaker corners are also joined where the image shows a quad's sides, \
+                 and quads are traced around dark blobs the network calls marker: finds markers \
+                 seen nearly edge-on, for a few milliseconds (detect --no-outline turns it off)",
             )
             .changed()
         {

@@ -4,6 +4,7 @@
 //! studio all detect through [`Detector::detect`].
 
 use super::stage1::group::{nested, same_quad, Proposal};
+use super::stage1::pipeline::Outlined;
 use super::stage1::{ProposeOptions, Stage1};
 use super::stage2::model_file::ModelError;
 use super::stage2::{shipped_model, ReadOptions, Stage2, Stage2Result};
@@ -163,34 +164,40 @@ impl Detector {
             if batch.is_empty() {
                 break;
             }
-            let reads = self.read_all(image, &batch, camera, round > 0, &mut timings);
+            let trust = if round == 0 {
+                Trust::First
+            } else {
+                Trust::Later
+            };
+            let reads = self.read_all(image, &batch, camera, trust, &mut timings);
             rounds.record(batch, reads);
         }
-        // Then the quads the image outlines away from the markers read, in rounds the same way.
-        // The search is stage 1's work, and its time is counted there.
-        let outline_clock = Stopwatch::start();
-        let covered: Vec<[[f64; 2]; 4]> = rounds.found.iter().map(|f| f.marker.corners).collect();
-        let outlined = search.outline(image, &covered);
-        let outline_ms = outline_clock.ms();
-        for _ in 0..OUTLINE_ROUNDS {
-            let batch: Vec<Proposal> = outlined
-                .proposals(&rounds.kept(), &rounds.failed)
-                .into_iter()
-                .filter(|p| {
-                    rounds.is_new(p)
-                        && !rounds
-                            .found
-                            .iter()
-                            .any(|f| nested(&f.marker.corners, &p.corners))
-                })
-                .take(MAX_OUTLINED_READS)
-                .collect();
-            if batch.is_empty() {
-                break;
-            }
-            let reads = self.read_all(image, &batch, camera, true, &mut timings);
-            rounds.record(batch, reads);
-        }
+        // Then the quads the image shows away from the markers read, in rounds the same way:
+        // first those outlined between stage 1's weaker corners, then those traced around dark
+        // blobs (which needs no corner at all). Both searches are stage 1's work, and their
+        // time is counted there.
+        let search_clock = Stopwatch::start();
+        let outlined = search.outline(image, &rounds.covered());
+        let mut search_ms = search_clock.ms();
+        self.read_rounds(
+            image,
+            &outlined,
+            Trust::Later,
+            camera,
+            &mut rounds,
+            &mut timings,
+        );
+        let search_clock = Stopwatch::start();
+        let traced = search.traced(image, &rounds.covered());
+        search_ms += search_clock.ms();
+        self.read_rounds(
+            image,
+            &traced,
+            Trust::Traced,
+            camera,
+            &mut rounds,
+            &mut timings,
+        );
         timings.proposals = rounds.read.len();
         // Markers do not overlap: of two reads where either's centre lies inside the other (the
         // same marker read twice, or a quad over part of a marker and its surroundings read as
@@ -208,23 +215,51 @@ impl Detector {
                 Some(_) => {}
             }
         }
-        timings.stage1_ms += outline_ms;
-        timings.stage2_ms = clock.ms() - outline_ms;
+        timings.stage1_ms += search_ms;
+        timings.stage2_ms = clock.ms() - search_ms;
         (kept, timings)
     }
 
-    /// Stage 2 of every family on every proposal: for each, the family that reads it, if any.
-    /// `later`: the proposals of a later round, which stage 1 ranked below ROIs no family could
-    /// read — more of them are clutter, and clutter decodes as some code at the edge of the
-    /// correction limit (a 36-symbol read at random lies within 5 symbols of one of 36h11's 587
-    /// codes in four turns once in 66 reads, within 2 once in 44 000), so their codes may need
-    /// at most half the family's corrections.
+    /// Up to [`IMAGE_SEARCH_ROUNDS`] selections of the quads an image search found, at most
+    /// [`MAX_IMAGE_SEARCH_READS`] new ones each, none over a marker already read.
+    fn read_rounds(
+        &self,
+        image: &GrayImage,
+        quads: &Outlined,
+        trust: Trust,
+        camera: Option<&Camera>,
+        rounds: &mut Rounds,
+        timings: &mut Timings,
+    ) {
+        for _ in 0..IMAGE_SEARCH_ROUNDS {
+            let batch: Vec<Proposal> = quads
+                .proposals(&rounds.kept(), &rounds.failed)
+                .into_iter()
+                .filter(|p| {
+                    rounds.is_new(p)
+                        && !rounds
+                            .found
+                            .iter()
+                            .any(|f| nested(&f.marker.corners, &p.corners))
+                })
+                .take(MAX_IMAGE_SEARCH_READS)
+                .collect();
+            if batch.is_empty() {
+                break;
+            }
+            let reads = self.read_all(image, &batch, camera, trust, timings);
+            rounds.record(batch, reads);
+        }
+    }
+
+    /// Stage 2 of every family on every proposal: for each, the family that reads it, if any,
+    /// with no more corrections than the proposals' [`Trust`] allows.
     fn read_all(
         &self,
         image: &GrayImage,
         proposals: &[Proposal],
         camera: Option<&Camera>,
-        later: bool,
+        trust: Trust,
         timings: &mut Timings,
     ) -> Vec<Option<Found>> {
         // The first stage-2 pass of each family over every proposal in one batch; only the ROIs
@@ -250,10 +285,10 @@ impl Detector {
                     Some((i, marker))
                 })
                 .collect();
-            let limit = reader.family.codebook().max_correction();
+            let allowed = trust.allowed(reader.family.codebook().max_correction());
             let read = read
                 .into_iter()
-                .filter(|(_, m)| !later || m.corrected_errors <= limit / 2);
+                .filter(|(_, m)| m.corrected_errors <= allowed);
             for (i, marker) in read {
                 // Two families reading one ROI: the one whose code needed fewer corrections.
                 if best[i]
@@ -276,9 +311,38 @@ impl Detector {
 /// read.
 const ROUNDS: usize = 3;
 
-/// Selections of outlined quads per image at most, and reads in each.
-const OUTLINE_ROUNDS: usize = 3;
-const MAX_OUTLINED_READS: usize = 4;
+/// Selections of each image search's quads per image at most, and reads in each.
+const IMAGE_SEARCH_ROUNDS: usize = 3;
+const MAX_IMAGE_SEARCH_READS: usize = 4;
+
+/// How far a proposal's source is trusted: how many of the family's corrections its code may
+/// need. Clutter decodes as some code at the edge of the correction limit (a 36-symbol read at
+/// random lies within 5 symbols of one of 36h11's 587 codes in four turns once in 66 reads,
+/// within 2 once in 44 000, within 3 once in about 2 500), so the sources that bring more
+/// clutter are held to fewer.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Trust {
+    /// Stage 1's first selection: whatever the decoder accepts (with erasures it may correct
+    /// more than the family's limit for errors alone: 7 on a σ 125 read of 36h11).
+    First,
+    /// A later selection, which stage 1 ranked below ROIs no family could read, or a quad
+    /// outlined between weaker corners: half the limit.
+    Later,
+    /// A quad traced around a dark blob the network's mask calls marker: one more than half.
+    /// A steep view traced 2 px off needs 3 of 36h11's 5 (dev set: one marker); a blob of
+    /// clutter must be convex, quadrilateral, dark on light and under the mask to be read at all.
+    Traced,
+}
+
+impl Trust {
+    fn allowed(self, limit: usize) -> usize {
+        match self {
+            Trust::First => usize::MAX,
+            Trust::Later => limit / 2,
+            Trust::Traced => (limit / 2 + 1).min(limit),
+        }
+    }
+}
 
 /// What the rounds of one image have sent to stage 2 so far.
 #[derive(Default)]
@@ -289,6 +353,11 @@ struct Rounds {
 }
 
 impl Rounds {
+    /// The markers read so far, by their corners.
+    fn covered(&self) -> Vec<[[f64; 2]; 4]> {
+        self.found.iter().map(|f| f.marker.corners).collect()
+    }
+
     /// The ROIs read as markers: their corners are spoken for in the next selection.
     fn kept(&self) -> Vec<Proposal> {
         self.found.iter().map(|f| f.proposal).collect()

@@ -31,6 +31,20 @@ impl GrayImage {
         self.pixels[y as usize * self.width as usize + x as usize]
     }
 
+    /// The pixels of `width` × `height` from (`x`, `y`), which must lie inside the image.
+    pub fn crop(&self, x: u32, y: u32, width: u32, height: u32) -> Self {
+        let mut pixels = Vec::with_capacity(width as usize * height as usize);
+        for row in y..y + height {
+            let start = row as usize * self.width as usize + x as usize;
+            pixels.extend_from_slice(&self.pixels[start..start + width as usize]);
+        }
+        Self {
+            width,
+            height,
+            pixels,
+        }
+    }
+
     /// Bilinear sample (see [`bilinear`]), in gray levels 0–255.
     pub fn sample(&self, x: f32, y: f32) -> f32 {
         bilinear(self.width, self.height, x, y, |i| self.pixels[i] as f32)

@@ -11,6 +11,7 @@ pub const STRIDE: usize = 4;
 pub mod group;
 pub mod outline;
 pub mod targets;
+pub mod traced;
 
 #[cfg(feature = "detect")]
 pub mod model_file;

@@ -67,7 +67,7 @@ const RANGE_SHARE: f32 = 0.25;
 
 /// The spread of the image's gray levels: the 98th percentile minus the 2nd, over every other
 /// pixel of every other row.
-fn contrast_range(image: &GrayImage) -> f32 {
+pub(super) fn contrast_range(image: &GrayImage) -> f32 {
     let w = image.width as usize;
     let mut histogram = [0usize; 256];
     let mut count = 0;
@@ -93,7 +93,7 @@ fn contrast_range(image: &GrayImage) -> f32 {
 
 /// The image's noise σ in gray levels (Immerkær 1996: the mean absolute response to a mask that
 /// cancels every plane and the 3 × 3 Laplacian of smooth shading), over every other pixel.
-fn noise_sigma(image: &GrayImage) -> f32 {
+pub(super) fn noise_sigma(image: &GrayImage) -> f32 {
     let (w, h) = (image.width as usize, image.height as usize);
     if w < 3 || h < 3 {
         return 0.0;

@@ -4,12 +4,13 @@
 //! levels kept once.
 
 use super::group::{
-    candidates, mask_inside, merge_duplicates, quad_centre, same_quad, select, Candidate, Corner,
-    GroupOptions, Maps, Proposal,
+    candidates, image_from_level, mask_inside, merge_duplicates, quad_centre, same_quad, select,
+    Candidate, Corner, GroupOptions, Maps, Proposal,
 };
 use super::model_file::{self, Stage1Header};
 use super::net::{NetConfig, Stage1Net, MAPS};
 use super::outline::{outline_candidates, OutlineOptions};
+use super::traced::{traced_quads_near, TraceOptions};
 use super::STRIDE;
 use crate::detect::stage2::model_file::ModelError;
 use crate::detect::stage2::normalise_patch;
@@ -44,6 +45,8 @@ pub struct ProposeOptions {
     pub upsample: bool,
     /// The search for quads the image outlines ([`super::outline`]); `None` skips it.
     pub outline: Option<OutlineOptions>,
+    /// The search for quads traced around dark blobs ([`super::traced`]); `None` skips it.
+    pub trace: Option<TraceOptions>,
 }
 
 impl Default for ProposeOptions {
@@ -53,7 +56,22 @@ impl Default for ProposeOptions {
             levels: 4,
             upsample: false,
             outline: Some(OutlineOptions::default()),
+            trace: Some(TraceOptions::default()),
         }
+    }
+}
+
+impl ProposeOptions {
+    /// Whether the searches that look at the image itself — outlined and traced quads, for the
+    /// steep views the network's grouping misses — run.
+    pub fn image_searches(&self) -> bool {
+        self.outline.is_some() || self.trace.is_some()
+    }
+
+    /// Turns both image searches on (with their default limits) or off.
+    pub fn set_image_searches(&mut self, on: bool) {
+        self.outline = on.then(OutlineOptions::default);
+        self.trace = on.then(TraceOptions::default);
     }
 }
 
@@ -105,6 +123,7 @@ pub struct Search {
     /// Corners of every level for the outline search (most confident first), and its settings.
     weak_corners: Vec<Corner>,
     outline: Option<OutlineOptions>,
+    trace: Option<TraceOptions>,
     /// Each level's maps and scale (image pixels per level pixel).
     maps: Vec<(Maps, f64)>,
 }
@@ -155,14 +174,7 @@ impl Search {
         let Some(options) = &self.outline else {
             return Outlined(Vec::new());
         };
-        // A fifth larger about its centre, for the corners stage 1 placed just outside it.
-        let grown: Vec<[[f64; 2]; 4]> = covered
-            .iter()
-            .map(|q| {
-                let c = quad_centre(q);
-                q.map(|p| [c[0] + 1.2 * (p[0] - c[0]), c[1] + 1.2 * (p[1] - c[1])])
-            })
-            .collect();
+        let grown = grown(covered);
         let free: Vec<Corner> = self
             .weak_corners
             .iter()
@@ -176,6 +188,59 @@ impl Search {
         Outlined(outlined)
     }
 
+    /// The quads traced around the image's dark blobs ([`super::traced`]; none when the search
+    /// is off) away from the `covered` quads, largest first.
+    pub fn traced(&self, image: &GrayImage, covered: &[[[f64; 2]; 4]]) -> Outlined {
+        let Some(options) = &self.trace else {
+            return Outlined(Vec::new());
+        };
+        let grown = grown(covered);
+        let mut out = Vec::new();
+        // Where the mask sees a marker that no read accounts for: every cell at or above the
+        // mask's threshold on any level, with the image pixels it covers.
+        let mut spots = Vec::new();
+        for (maps, scale) in &self.maps {
+            let half = 0.5 * STRIDE as f64 * scale;
+            for (i, &m) in maps.mask.iter().enumerate() {
+                if (m as f64) < options.mask {
+                    continue;
+                }
+                let (cx, cy) = (i % maps.columns, i / maps.columns);
+                let at = |c: usize| image_from_level((c as f64 + 0.5) * STRIDE as f64, *scale);
+                let centre = [at(cx), at(cy)];
+                if grown.iter().any(|q| inside_polygon(q, centre)) {
+                    continue;
+                }
+                spots.push([
+                    centre[0] - half,
+                    centre[1] - half,
+                    centre[0] + half,
+                    centre[1] + half,
+                ]);
+            }
+        }
+        for corners in traced_quads_near(image, &spots, options) {
+            let centre = quad_centre(&corners);
+            if grown.iter().any(|q| inside_polygon(q, centre)) {
+                continue;
+            }
+            let support = self.mask_support(&corners);
+            if support < options.mask {
+                continue;
+            }
+            // Each quad its own four corners: traced quads share none.
+            let first = 4 * out.len();
+            out.push(Candidate {
+                corners: [first, first + 1, first + 2, first + 3],
+                proposal: Proposal {
+                    corners,
+                    score: support,
+                },
+            });
+        }
+        Outlined(out)
+    }
+
     /// How much of the quad the network's mask calls marker, at the level that says most.
     fn mask_support(&self, q: &[[f64; 2]; 4]) -> f64 {
         self.maps
@@ -183,6 +248,18 @@ impl Search {
             .map(|(maps, scale)| mask_inside(q, &|p| maps.mask_at(p, *scale)).0)
             .fold(0.0, f64::max)
     }
+}
+
+/// The quads a fifth larger about their centres: corners stage 1 placed just outside a marker
+/// read, or a blob of its quiet zone's shadow, still count as its.
+fn grown(quads: &[[[f64; 2]; 4]]) -> Vec<[[f64; 2]; 4]> {
+    quads
+        .iter()
+        .map(|q| {
+            let c = quad_centre(q);
+            q.map(|p| [c[0] + 1.2 * (p[0] - c[0]), c[1] + 1.2 * (p[1] - c[1])])
+        })
+        .collect()
 }
 
 /// [`Stage1::search`] with a given network.
@@ -232,6 +309,7 @@ pub fn search_with(
         levels,
         weak_corners,
         outline: options.outline,
+        trace: options.trace,
         maps: all_maps,
     }
 }
