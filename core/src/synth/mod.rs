@@ -440,11 +440,16 @@ fn place_camera(
 }
 
 /// A marker at `distance` metres, turned `view` radians away from facing the camera, spun
-/// in-plane at random, somewhere in the field of view.
+/// in-plane at random, somewhere in the field of view. The turn is measured from the optical
+/// axis; off the image centre the line of sight is up to ~25° from it, and a marker turned 75°
+/// away from the axis towards the image's edge would show the camera its back (drawn mirrored: no
+/// camera sees a printed marker so). Such a turn is drawn again about another axis, until the
+/// marker is within [`MAX_LINE_OF_SIGHT_DEG`] of its line of sight; poses that face the camera
+/// are drawn exactly as before.
 pub fn random_pose(rng: &mut ChaCha8Rng, camera: &Camera, distance: f64, view: f64) -> Pose {
     let facing = Rotation3::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI);
-    let tilt_axis = rng.random_range(0.0..std::f64::consts::TAU);
-    let tilt = Rotation3::new(Vector3::new(tilt_axis.cos(), tilt_axis.sin(), 0.0) * view);
+    let tilt_about = |axis: f64| Rotation3::new(Vector3::new(axis.cos(), axis.sin(), 0.0) * view);
+    let tilt = tilt_about(rng.random_range(0.0..std::f64::consts::TAU));
     let spin = Rotation3::from_axis_angle(
         &Vector3::z_axis(),
         rng.random_range(0.0..std::f64::consts::TAU),
@@ -460,11 +465,24 @@ pub fn random_pose(rng: &mut ChaCha8Rng, camera: &Camera, distance: f64, view: f
         1.0,
     )
     .normalize();
+    let mut rotation = tilt * facing * spin;
+    // The printed side's normal against the direction back to the camera.
+    let min_cos = MAX_LINE_OF_SIGHT_DEG.to_radians().cos();
+    for _ in 0..64 {
+        if -(rotation * Vector3::z()).dot(&ray) >= min_cos {
+            break;
+        }
+        rotation = tilt_about(rng.random_range(0.0..std::f64::consts::TAU)) * facing * spin;
+    }
     Pose {
-        rotation: tilt * facing * spin,
+        rotation,
         translation: ray * distance,
     }
 }
+
+/// The furthest a synthesised marker is turned from its line of sight, in degrees: beyond it a
+/// marker is a line a few pixels wide (and past 90° its back).
+pub const MAX_LINE_OF_SIGHT_DEG: f64 = 85.0;
 
 /// Marker units → undistorted pixels for a marker `side_m` metres wide at `pose`: K · [r1 r2 t]
 /// composed with the marker-unit → metric plane map.
