@@ -195,14 +195,11 @@ struct Run {
 pub fn traced_quads(image: &GrayImage, offset: f32, options: &TraceOptions) -> Vec<[[f64; 2]; 4]> {
     let runs = dark_runs(image, offset, options.window);
     let labels = blobs(&runs);
-    // Each blob's pixel count and height first: most blobs (texture, text) are too small to
-    // gather points for.
+    // Each blob's bounds first: most blobs (texture, text) are too small to gather points for.
     let blob_count = labels.iter().map(|&l| l + 1).max().unwrap_or(0);
-    let mut pixels = vec![0u64; blob_count];
     let mut rows = vec![(u32::MAX, 0u32); blob_count];
     let mut columns = vec![(u32::MAX, 0u32); blob_count];
     for (run, &l) in runs.iter().zip(&labels) {
-        pixels[l] += (run.x1 - run.x0 + 1) as u64;
         rows[l] = (rows[l].0.min(run.y), rows[l].1.max(run.y));
         columns[l] = (columns[l].0.min(run.x0), columns[l].1.max(run.x1));
     }
