@@ -166,7 +166,7 @@ fn side_steps(image: &GrayImage, a: [f64; 2], b: [f64; 2], contrast: f32) -> (f3
     (right, left)
 }
 
-fn cross(o: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
+pub(super) fn cross(o: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
     (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
 }
 

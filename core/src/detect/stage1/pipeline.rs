@@ -128,7 +128,7 @@ pub struct Search {
     maps: Vec<(Maps, f64)>,
 }
 
-/// The quads an image outlines ([`Search::outline`]), best first.
+/// The quads an image search found ([`Search::outline`], [`Search::traced`]), best first.
 pub struct Outlined(Vec<Candidate>);
 
 impl Outlined {
@@ -195,19 +195,17 @@ impl Search {
             return Outlined(Vec::new());
         };
         let grown = grown(covered);
-        let mut out = Vec::new();
         // Where the mask sees a marker that no read accounts for: every cell at or above the
         // mask's threshold on any level, with the image pixels it covers.
         let mut spots = Vec::new();
         for (maps, scale) in &self.maps {
             let half = 0.5 * STRIDE as f64 * scale;
+            let at = |c: usize| image_from_level((c as f64 + 0.5) * STRIDE as f64, *scale);
             for (i, &m) in maps.mask.iter().enumerate() {
                 if (m as f64) < options.mask {
                     continue;
                 }
-                let (cx, cy) = (i % maps.columns, i / maps.columns);
-                let at = |c: usize| image_from_level((c as f64 + 0.5) * STRIDE as f64, *scale);
-                let centre = [at(cx), at(cy)];
+                let centre = [at(i % maps.columns), at(i / maps.columns)];
                 if grown.iter().any(|q| inside_polygon(q, centre)) {
                     continue;
                 }
@@ -219,6 +217,7 @@ impl Search {
                 ]);
             }
         }
+        let mut out = Vec::new();
         for corners in traced_quads_near(image, &spots, options) {
             let centre = quad_centre(&corners);
             if grown.iter().any(|q| inside_polygon(q, centre)) {

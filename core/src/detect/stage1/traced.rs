@@ -9,7 +9,7 @@
 //! [`TraceOptions::window`] px), so shading across the image does not matter. Like every ROI,
 //! a traced quad is only a proposal: stage 2 decides, so a blob of clutter costs one read.
 
-use super::outline::{contrast_range, noise_sigma};
+use super::outline::{contrast_range, cross, noise_sigma};
 use crate::image::GrayImage;
 
 /// The noisiest image traced, as σ in gray levels: beyond it the dark pixels of noise join into
@@ -192,7 +192,7 @@ struct Run {
 /// Every dark blob's quad in `image`, clockwise in the image (y down, the order stage 2 takes),
 /// largest first. Image coordinates put pixel centres on integers.
 /// `offset`: how much darker than its box's mean a dark pixel is, in gray levels.
-pub fn traced_quads(image: &GrayImage, offset: f32, options: &TraceOptions) -> Vec<[[f64; 2]; 4]> {
+fn traced_quads(image: &GrayImage, offset: f32, options: &TraceOptions) -> Vec<[[f64; 2]; 4]> {
     let runs = dark_runs(image, offset, options.window);
     let labels = blobs(&runs);
     // Each blob's bounds first: most blobs (texture, text) are too small to gather points for.
@@ -399,10 +399,6 @@ fn opposite_sides_ratio(q: &[[f64; 2]; 4]) -> f64 {
     ratio(side(0), side(2)).max(ratio(side(1), side(3)))
 }
 
-fn cross(o: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
-    (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-}
-
 fn distance(a: [f64; 2], b: [f64; 2]) -> f64 {
     (a[0] - b[0]).hypot(a[1] - b[1])
 }
@@ -443,7 +439,7 @@ fn convex_hull(mut points: Vec<[f64; 2]>) -> Vec<[f64; 2]> {
 /// found at up to 32 points of its middle 70 %, as the strongest light-to-dark step into the quad
 /// within 3 px, and a line fitted through them; a side with too few clear steps stays as it is,
 /// and so does a quad whose corners would move by more than 15 % of its longest side.
-pub fn fitted_to_edges(image: &GrayImage, quad: [[f64; 2]; 4]) -> [[f64; 2]; 4] {
+fn fitted_to_edges(image: &GrayImage, quad: [[f64; 2]; 4]) -> [[f64; 2]; 4] {
     let mut lines: [Option<([f64; 2], [f64; 2])>; 4] = [None; 4];
     for (i, line) in lines.iter_mut().enumerate() {
         let (p, q) = (quad[i], quad[(i + 1) % 4]);
@@ -476,7 +472,7 @@ pub fn fitted_to_edges(image: &GrayImage, quad: [[f64; 2]; 4]) -> [[f64; 2]; 4] 
             }
         }
         if points.len() * 2 >= samples && points.len() >= 3 {
-            *line = fit_line(&points);
+            *line = Some(fit_line(&points));
         }
     }
     let mut out = quad;
@@ -501,7 +497,7 @@ pub fn fitted_to_edges(image: &GrayImage, quad: [[f64; 2]; 4]) -> [[f64; 2]; 4] 
 }
 
 /// The total-least-squares line through the points: a point on it and its direction.
-fn fit_line(points: &[[f64; 2]]) -> Option<([f64; 2], [f64; 2])> {
+fn fit_line(points: &[[f64; 2]]) -> ([f64; 2], [f64; 2]) {
     let n = points.len() as f64;
     let mean = [
         points.iter().map(|p| p[0]).sum::<f64>() / n,
@@ -516,7 +512,7 @@ fn fit_line(points: &[[f64; 2]]) -> Option<([f64; 2], [f64; 2])> {
     }
     // The principal axis of the scatter.
     let angle = 0.5 * (2.0 * xy).atan2(xx - yy);
-    Some((mean, [angle.cos(), angle.sin()]))
+    (mean, [angle.cos(), angle.sin()])
 }
 
 fn intersection(a: ([f64; 2], [f64; 2]), b: ([f64; 2], [f64; 2])) -> Option<[f64; 2]> {
