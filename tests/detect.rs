@@ -297,6 +297,69 @@ fn train_writes_a_model_that_loads_for_its_family_only() {
     assert_eq!(run.code, 2);
 }
 
+/// `--init shipped` fine-tunes a family's shipped stage 2: after two steps at a tiny rate the
+/// model still reads the validation patches (fresh weights read none), and the report names
+/// where it started and its share of camera-cut patches. A family without shipped weights, or
+/// a share outside [0, 1], is refused before anything runs.
+#[test]
+fn stage_2_fine_tunes_from_the_shipped_weights() {
+    let dir = tempfile::tempdir().unwrap();
+    let args = |family: &'static str, extra: &[&'static str]| {
+        let mut a = vec![
+            "train",
+            family,
+            "--stage",
+            "keypoints",
+            "--steps",
+            "2",
+            "--batch",
+            "2",
+            "--learning-rate",
+            "0.000001",
+            "--validate-every",
+            "2",
+            "--validation-patches",
+            "10",
+            "--out",
+            "ft",
+        ];
+        a.extend_from_slice(extra);
+        a
+    };
+    tagsmith(
+        dir.path(),
+        &args(
+            "aruco-6x6_250",
+            &["--init", "shipped", "--camera-patches", "0.5"],
+        ),
+    )
+    .ok();
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("ft/report.json")).unwrap()).unwrap();
+    assert_eq!(
+        report["started_from"],
+        "shipped aruco-6x6_250 stage-2 model"
+    );
+    assert_eq!(report["camera_share"], 0.5);
+    let id_accuracy = report["validation"][0][1]["id_accuracy"].as_f64().unwrap();
+    assert!(id_accuracy >= 0.9, "ID accuracy {id_accuracy}");
+
+    let run = tagsmith(dir.path(), &args("apriltag-16h5", &["--init", "shipped"]));
+    assert_eq!(run.code, 2);
+    assert!(
+        run.stderr
+            .contains("no stage-2 model is shipped for apriltag-16h5"),
+        "{}",
+        run.stderr
+    );
+    let run = tagsmith(
+        dir.path(),
+        &args("aruco-6x6_250", &["--camera-patches", "1.5"]),
+    );
+    assert_eq!(run.code, 2);
+    assert!(run.stderr.contains("--camera-patches"), "{}", run.stderr);
+}
+
 /// `kill -9` in the middle of training loses at most one checkpoint interval: `--resume` goes on
 /// from the last checkpoint.
 #[test]

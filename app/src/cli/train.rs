@@ -9,6 +9,7 @@ use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use tagsmith::detect::stage1::pipeline::SHIPPED_STAGE1;
+use tagsmith::detect::stage2::{shipped_families, shipped_model};
 use tagsmith::train::stage::TrainStage;
 use tagsmith::train::stage1::RoiStage;
 use tagsmith::train::stage2::KeypointStage;
@@ -37,6 +38,13 @@ fn max_workers() -> u64 {
     (2 * cores).max(64)
 }
 
+fn unit_interval(text: &str) -> std::result::Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(v) if (0.0..=1.0).contains(&v) => Ok(v),
+        _ => Err(format!("{text} is not a share between 0 and 1")),
+    }
+}
+
 fn in_range(range: std::ops::RangeInclusive<u64>) -> RangedU64ValueParser<usize> {
     RangedU64ValueParser::<usize>::new().range(range)
 }
@@ -62,11 +70,16 @@ pub struct TrainArgs {
     /// Continue from the output folder's checkpoint.
     #[arg(long)]
     pub resume: bool,
-    /// `--stage roi`: the weights to start from — a stage-1 model file, `shipped` (the shipped
-    /// model: fine-tuning) or `none` (fresh weights) [default: shipped with a FAMILY, none
-    /// without]. The network's width is then the model's.
+    /// The weights to start from — a model file of the stage, `shipped` (the shipped model:
+    /// fine-tuning) or `none` (fresh weights) [default: `--stage roi` shipped with a FAMILY,
+    /// otherwise none]. The network's width is then the model's.
     #[arg(long)]
     pub init: Option<String>,
+    /// `--stage keypoints`: the share of training patches cut from steep camera views, as the
+    /// detector cuts them (the rest are drawn at patch resolution) [range: 0..=1].
+    #[arg(long, default_value_t = tagsmith::train::stage2::data::DEFAULT_CAMERA_SHARE,
+          value_parser = unit_interval)]
+    pub camera_patches: f64,
     /// Channels of the network's widest layers [range: 8..=256].
     #[arg(long, default_value_t = TrainConfig::default().width,
           value_parser = in_range(8..=MAX_WIDTH))]
@@ -115,18 +128,43 @@ impl TrainArgs {
         let stop = AtomicBool::new(false);
         match self.stage {
             Stage::Keypoints => {
-                if self.init.is_some() {
-                    return Err(CliError::bad_input(
-                        "--init is for --stage roi (stage 2 trains from fresh weights)",
-                    ));
-                }
                 let family = family.ok_or_else(|| {
                     CliError::bad_input("--stage keypoints needs a FAMILY to train for")
                 })?;
+                let stage = KeypointStage::new(&family, config.width)
+                    .with_camera_share(self.camera_patches);
+                let stage = match self.init.as_deref().unwrap_or("none") {
+                    "none" => stage,
+                    "shipped" => {
+                        let bytes = shipped_model(family.name()).ok_or_else(|| {
+                            CliError::bad_input(format!(
+                                "--init shipped: no stage-2 model is shipped for {} (shipped: {})",
+                                family.name(),
+                                shipped_families().collect::<Vec<_>>().join(", ")
+                            ))
+                        })?;
+                        let name = format!("shipped {} stage-2 model", family.name());
+                        stage
+                            .starting_from(bytes.to_vec(), &name)
+                            .map_err(CliError::failure)?
+                    }
+                    path => {
+                        let bytes = std::fs::read(path).map_err(|e| {
+                            CliError::bad_input(format!("--init {path}: cannot read it: {e}"))
+                        })?;
+                        stage
+                            .starting_from(bytes, path)
+                            .map_err(CliError::bad_input)?
+                    }
+                };
+                let config = TrainConfig {
+                    width: stage.net().width,
+                    ..config
+                };
                 let out = self
                     .out
                     .unwrap_or_else(|| PathBuf::from(format!("runs/{}-keypoints", family.name())));
-                let stage = Arc::new(KeypointStage::new(&family, config.width));
+                let stage = Arc::new(stage);
                 with_progress::<KeypointStage>(
                     &config,
                     |on_event| train::train(stage, &config, &out, self.resume, &stop, on_event),

@@ -17,7 +17,7 @@ fn a_tiny_model_overfits_a_few_patches() {
     let family = builtin::get("apriltag-36h11").unwrap().unwrap();
     let spec = PatchSpec::for_family(&family);
     let samples: Vec<_> = (0..2)
-        .map(|i| make_sample(&family, &spec, image_seed(7, i)).unwrap())
+        .map(|i| make_sample(&family, &spec, image_seed(7, i), 0.0).unwrap())
         .collect();
     let device = Device::flex().autodiff();
     device.seed(3);
@@ -121,7 +121,7 @@ fn training_resumes_from_its_checkpoint() {
     let c = std::fs::read(again.path().join("model.bin")).unwrap();
     // Threaded reductions make runs equal to rounding, not bit for bit: compare outputs.
     let spec = PatchSpec::for_family(&family);
-    let patch = make_sample(&family, &spec, 99).unwrap().image;
+    let patch = make_sample(&family, &spec, 99, 0.0).unwrap().image;
     let outputs = |bytes: &[u8]| {
         Stage2::from_bytes(bytes, "model.bin", &family)
             .unwrap()

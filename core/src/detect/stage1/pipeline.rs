@@ -224,7 +224,7 @@ impl Search {
                 continue;
             }
             let support = self.mask_support(&corners);
-            if support < options.mask {
+            if support < options.support {
                 continue;
             }
             // Each quad its own four corners: traced quads share none.

@@ -1,15 +1,25 @@
 //! Stage 2's training patches.
 //!
-//! Sample `i` of a run is a pure function of (run seed, i): the synthesiser's patch mode (the ROI
-//! mapped to a random quad, a_i ~ U[0.05, 0.25], blur, noise, lighting) then a turn of the whole
+//! Sample `i` of a run is a pure function of (run seed, i): either the synthesiser's patch mode
+//! (the ROI mapped to a random quad, a_i ~ U[0.05, 0.25], blur, noise, lighting) or, for a share
+//! of the samples, a patch cut from a steep camera view ([`camera_cut`]); then a turn of the whole
 //! patch by a random multiple of 90°, because stage 1's ROI starts at whichever corner it sees
 //! first.
 
 use crate::detect::stage2::anchors::{encode, PatchSpec, Targets};
 use crate::detect::stage2::normalise_patch;
 use crate::family::Family;
+use crate::geometry::{warp_bilinear, Homography};
 use crate::image::GrayImage;
 use crate::synth::{synthesize, KeypointTruth, MarkerTruth, Mode, SynthConfig};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+/// The share of training patches cut from camera views when a run does not say otherwise.
+/// Patch mode draws the marker at patch resolution under mild perspective; a steep view of a
+/// small marker reaches stage 2 as a patch stretched ~10× along one axis, which patch mode never
+/// shows it (BENCHMARKS.md, "Steep views in stage 2's training").
+pub const DEFAULT_CAMERA_SHARE: f64 = 0.3;
 
 /// One training patch with its targets.
 pub struct PatchSample {
@@ -41,12 +51,131 @@ fn turn_image(image: &GrayImage, quarter: u64) -> GrayImage {
     img
 }
 
-/// The patch of sample `seed`.
-pub fn make_sample(family: &Family, spec: &PatchSpec, seed: u64) -> Result<PatchSample, String> {
+/// A uniform number in [0, 1) from `seed`, independent of the synthesiser's own draws.
+fn unit(seed: u64, salt: u64) -> f64 {
+    let mixed = (seed ^ salt).wrapping_mul(0xD1B5_4A32_D192_ED03);
+    (mixed >> 11) as f64 / (1u64 << 53) as f64
+}
+
+/// The patch of sample `seed`: cut from a camera view with probability `camera_share`.
+pub fn make_sample(
+    family: &Family,
+    spec: &PatchSpec,
+    seed: u64,
+    camera_share: f64,
+) -> Result<PatchSample, String> {
+    let cut = if unit(seed, 0xC0FF_EE00) < camera_share {
+        camera_cut(family, spec, seed)?
+    } else {
+        None
+    };
+    let (image, truth) = match cut {
+        Some(cut) => cut,
+        None => patch_mode(family, spec, seed)?,
+    };
+    Ok(turned(family, spec, seed, image, truth))
+}
+
+fn patch_mode(
+    family: &Family,
+    spec: &PatchSpec,
+    seed: u64,
+) -> Result<(GrayImage, MarkerTruth), String> {
     let mut config = SynthConfig::new(Mode::Patch);
     config.width = spec.size;
     config.height = spec.size;
     let sample = synthesize(family, &config, seed).map_err(|e| e.to_string())?;
+    let truth = sample
+        .truth
+        .markers
+        .into_iter()
+        .next()
+        .ok_or("the synthesiser placed no marker in the patch")?;
+    Ok((sample.image, truth))
+}
+
+/// A patch cut from a 640×480 camera view (98° diagonal) of one marker 3–10 cm wide, 10–60 cm
+/// away (the harness camera's 20–120 cm at 1280×960) and turned 40–80° away, as the detector cuts
+/// it: the ROI (off by up to a pixel, as stage 1's and the traced quads' are) warped onto the
+/// patch's template corners. `None` when the marker does not lie whole in the view.
+fn camera_cut(
+    family: &Family,
+    spec: &PatchSpec,
+    seed: u64,
+) -> Result<Option<(GrayImage, MarkerTruth)>, String> {
+    let mut config = SynthConfig::new(Mode::Camera);
+    config.width = 640;
+    config.height = 480;
+    config.markers = [1, 1];
+    config.distance_m = [0.1, 0.6];
+    config.view_angle_deg = [40.0, 80.0];
+    let sample = synthesize(family, &config, seed).map_err(|e| e.to_string())?;
+    let Some(truth) = sample.truth.markers.into_iter().next() else {
+        return Ok(None);
+    };
+    let (w, h) = (config.width as f64, config.height as f64);
+    let inside = |p: &[f64; 2]| p[0] >= 0.0 && p[1] >= 0.0 && p[0] < w && p[1] < h;
+    if truth.roi.len() < 4 || !truth.roi.iter().all(inside) {
+        return Ok(None);
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5EED_0F_C0);
+    let sigma = rng.random_range(0.0..1.0);
+    let roi: [[f64; 2]; 4] = std::array::from_fn(|i| {
+        let [x, y] = truth.roi[i];
+        // A sum of uniforms is close enough to a normal error here.
+        let mut off = || (0..3).map(|_| rng.random_range(-1.0..1.0)).sum::<f64>() * sigma;
+        [x + off(), y + off()]
+    });
+    let Ok(to_image) = Homography::from_points(&spec.template_corners(), &roi) else {
+        return Ok(None);
+    };
+    let Some(to_patch) = to_image.inverse() else {
+        return Ok(None);
+    };
+    let patch = warp_bilinear(&sample.image, &to_image, spec.size, spec.size, 128);
+    let at = |p: [f64; 2]| to_patch.apply(p);
+    let mask: Vec<[f64; 2]> = truth.mask.iter().map(|&p| at(p)).collect();
+    let bbox = mask.iter().fold(
+        [
+            f64::INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+        ],
+        |b, p| {
+            [
+                b[0].min(p[0]),
+                b[1].min(p[1]),
+                b[2].max(p[0]),
+                b[3].max(p[1]),
+            ]
+        },
+    );
+    let truth = MarkerTruth {
+        roi: truth.roi.iter().map(|&p| at(p)).collect(),
+        mask,
+        bbox,
+        keypoints: truth
+            .keypoints
+            .iter()
+            .map(|k| {
+                let [x, y] = at([k.x, k.y]);
+                KeypointTruth { x, y, ..k.clone() }
+            })
+            .collect(),
+        ..truth
+    };
+    Ok(Some((patch, truth)))
+}
+
+/// The sample turned by its quarter turns, with its targets.
+fn turned(
+    family: &Family,
+    spec: &PatchSpec,
+    seed: u64,
+    image: GrayImage,
+    truth: MarkerTruth,
+) -> PatchSample {
     // Only layouts that map onto themselves under a quarter turn (grids) can be seen turned by
     // one; ring markers' ROI fixes their orientation.
     let turns = family
@@ -58,12 +187,6 @@ pub fn make_sample(family: &Family, spec: &PatchSpec, seed: u64) -> Result<Patch
     } else {
         0
     };
-    let truth = sample
-        .truth
-        .markers
-        .into_iter()
-        .next()
-        .ok_or("the synthesiser placed no marker in the patch")?;
     let at = |p: [f64; 2]| turn(p, spec.size, quarter);
     let truth = MarkerTruth {
         roi: truth.roi.iter().map(|&p| at(p)).collect(),
@@ -84,11 +207,92 @@ pub fn make_sample(family: &Family, spec: &PatchSpec, seed: u64) -> Result<Patch
         .map(|&i| truth.keypoints[i].clone())
         .collect();
     let targets = encode(spec, &regressed, &truth.roi, &truth.mask);
-    let image = turn_image(&sample.image, quarter);
-    Ok(PatchSample {
+    let image = turn_image(&image, quarter);
+    PatchSample {
         input: normalise_patch(&image),
         image,
         targets,
         truth,
-    })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::builtin;
+    use crate::synth::image_seed;
+
+    fn samples(share: f64) -> Vec<PatchSample> {
+        let family = builtin::get("apriltag-36h11").unwrap().unwrap();
+        let spec = PatchSpec::for_family(&family);
+        (0..16)
+            .map(|i| make_sample(&family, &spec, image_seed(11, i), share).unwrap())
+            .collect()
+    }
+
+    /// The largest distance from a truth ROI corner to the nearest template corner.
+    fn off_template(sample: &PatchSample, spec: &PatchSpec) -> f64 {
+        sample.truth.roi[..4]
+            .iter()
+            .map(|p| {
+                spec.template_corners()
+                    .iter()
+                    .map(|t| (p[0] - t[0]).hypot(p[1] - t[1]))
+                    .fold(f64::INFINITY, f64::min)
+            })
+            .fold(0.0, f64::max)
+    }
+
+    /// Camera cuts are what the detector warps: the marker's ROI sits on the template corners
+    /// (within the simulated ROI error), where patch mode places it anywhere in its margin.
+    #[test]
+    fn camera_cuts_put_the_roi_where_the_detector_warps_it() {
+        let spec = PatchSpec::default();
+        let cuts = samples(1.0);
+        let near = cuts.iter().filter(|s| off_template(s, &spec) < 6.0).count();
+        // A view that does not fit the image falls back to patch mode.
+        assert!(
+            near >= 12,
+            "{near} of 16 camera cuts on the template corners"
+        );
+        let drawn = samples(0.0);
+        let near = drawn
+            .iter()
+            .filter(|s| off_template(s, &spec) < 6.0)
+            .count();
+        assert!(
+            near <= 4,
+            "{near} of 16 patch-mode samples on the template corners"
+        );
+    }
+
+    /// The truth keypoints of a camera cut land on their cells: black cells read darker than
+    /// white ones, as in patch mode (a wrong mapping would mix them).
+    #[test]
+    fn camera_cut_keypoints_sit_on_their_cells() {
+        let contrast = |set: &[PatchSample]| {
+            let mut sums = [[0.0; 2]; 2];
+            for s in set {
+                for k in s
+                    .truth
+                    .keypoints
+                    .iter()
+                    .filter(|k| k.visible && k.category < 2)
+                {
+                    let (x, y) = (k.x.round() as u32, k.y.round() as u32);
+                    if x < s.image.width && y < s.image.height {
+                        sums[k.category][0] += s.image.get(x, y) as f64;
+                        sums[k.category][1] += 1.0;
+                    }
+                }
+            }
+            sums[0][0] / sums[0][1] - sums[1][0] / sums[1][1]
+        };
+        let (cut, drawn) = (contrast(&samples(1.0)), contrast(&samples(0.0)));
+        assert!(drawn.abs() > 40.0, "patch mode: {drawn}");
+        assert!(
+            cut.signum() == drawn.signum() && cut.abs() > 20.0,
+            "camera cuts {cut}, patch mode {drawn}"
+        );
+    }
 }

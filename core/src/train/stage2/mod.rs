@@ -13,7 +13,7 @@ use crate::detect::stage2::pipeline::raw_outputs;
 use crate::family::Family;
 use burn::module::Module;
 use burn::tensor::{Device, Tensor};
-use data::{make_sample, PatchSample};
+use data::{make_sample, PatchSample, DEFAULT_CAMERA_SHARE};
 use loss::{losses, Batch, LossTerms};
 use serde::{Deserialize, Serialize};
 use validate::Metrics;
@@ -23,6 +23,9 @@ pub struct KeypointStage {
     family: Family,
     spec: PatchSpec,
     net: NetConfig,
+    camera_share: f64,
+    /// The model file fine-tuning starts from, with its name.
+    start: Option<(Vec<u8>, String)>,
 }
 
 /// What a stage-2 report says about the network.
@@ -31,6 +34,12 @@ pub struct KeypointInfo {
     pub net: NetConfig,
     /// Patch side in pixels.
     pub patch: usize,
+    /// The share of training patches cut from steep camera views.
+    #[serde(default)]
+    pub camera_share: f64,
+    /// The model the run was fine-tuned from, if any.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub started_from: Option<String>,
 }
 
 impl KeypointStage {
@@ -44,7 +53,31 @@ impl KeypointStage {
             },
             family: family.clone(),
             spec,
+            camera_share: DEFAULT_CAMERA_SHARE,
+            start: None,
         }
+    }
+
+    /// Sets the share of training patches cut from camera views (0 = patch mode only, the
+    /// first shipped models' data). Validation always uses patch mode, so runs compare.
+    pub fn with_camera_share(mut self, share: f64) -> Self {
+        self.camera_share = share.clamp(0.0, 1.0);
+        self
+    }
+
+    /// Starts from the weights of the stage-2 model file `bytes` (called `name` in errors and
+    /// the report) instead of fresh ones: fine-tuning. The network's width is the model's.
+    pub fn starting_from(mut self, bytes: Vec<u8>, name: &str) -> Result<Self, String> {
+        let (_, header) = model_file::from_bytes(&bytes, name, &self.family, &Device::flex())
+            .map_err(|e| e.to_string())?;
+        self.net = header.net;
+        self.start = Some((bytes, name.to_string()));
+        Ok(self)
+    }
+
+    /// The network's settings (those of the model it starts from, if any).
+    pub fn net(&self) -> NetConfig {
+        self.net
     }
 }
 
@@ -67,6 +100,8 @@ impl TrainStage for KeypointStage {
         KeypointInfo {
             net: self.net,
             patch: self.spec.size as usize,
+            camera_share: self.camera_share,
+            started_from: self.start.as_ref().map(|(_, name)| name.clone()),
         }
     }
 
@@ -75,11 +110,19 @@ impl TrainStage for KeypointStage {
     }
 
     fn init(&self, device: &Device) -> Stage2Net {
-        self.net.init(device)
+        match &self.start {
+            // Checked when the stage was made.
+            Some((bytes, name)) => {
+                model_file::from_bytes(bytes, name, &self.family, device)
+                    .expect("the starting model loaded before")
+                    .0
+            }
+            None => self.net.init(device),
+        }
     }
 
     fn sample(&self, seed: u64) -> Result<PatchSample, String> {
-        make_sample(&self.family, &self.spec, seed)
+        make_sample(&self.family, &self.spec, seed, self.camera_share)
     }
 
     fn loss(

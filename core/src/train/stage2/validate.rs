@@ -41,7 +41,7 @@ pub fn validation_set(
     size: usize,
 ) -> Result<Vec<PatchSample>, String> {
     (0..size as u64)
-        .map(|i| make_sample(family, spec, image_seed(VALIDATION_SEED, i)))
+        .map(|i| make_sample(family, spec, image_seed(VALIDATION_SEED, i), 0.0))
         .collect()
 }
 
