@@ -62,6 +62,10 @@ pub struct Stage2Result {
     pub missing: usize,
     /// Passes run (the second refines the first; a failed second pass keeps the first).
     pub iterations: usize,
+    /// Passes that decoded this ID, of those run or tried: a pass that decodes another ID or
+    /// nothing counts against it (`iterations` counts only passes that decoded).
+    pub agreeing_passes: usize,
+    pub tried_passes: usize,
     /// The alignment against the rendering (`--refine full`).
     pub refinement: Option<RefineReport>,
     #[serde(skip)]
@@ -170,9 +174,17 @@ impl Stage2 {
     ) -> Option<Stage2Result> {
         let mut roi = first.corners;
         let mut result = first;
+        let mut agreeing = 1;
+        let mut tried = 1;
         for pass in 1..options.iterations.max(1) {
+            tried += 1;
             match self.pass(image, &roi) {
                 Some(mut r) => {
+                    if r.id == result.id {
+                        agreeing += 1;
+                    } else {
+                        agreeing = 1;
+                    }
                     r.iterations = pass + 1;
                     roi = r.corners;
                     result = r;
@@ -180,6 +192,8 @@ impl Stage2 {
                 None => break,
             }
         }
+        result.agreeing_passes = agreeing;
+        result.tried_passes = tried;
         let lens = camera.map_or(Lens::Pixels, |(c, _)| Lens::Camera(c));
         let kps = self.family.keypoints();
         let canonical: Vec<[f64; 2]> = result.keypoints.iter().map(|k| kps[k.index].pos).collect();
@@ -272,6 +286,8 @@ impl Stage2 {
             missing: family.regressed_keypoints().len() - keypoints.len(),
             keypoints,
             iterations: 1,
+            agreeing_passes: 1,
+            tried_passes: 1,
             refinement: None,
             pose: None,
         })

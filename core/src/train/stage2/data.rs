@@ -118,7 +118,7 @@ fn camera_cut(
     if truth.roi.len() < 4 || !truth.roi.iter().all(inside) {
         return Ok(None);
     }
-    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5EED_0F_C0);
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5EED_0FC0);
     let sigma = rng.random_range(0.0..1.0);
     let roi: [[f64; 2]; 4] = std::array::from_fn(|i| {
         let [x, y] = truth.roi[i];
