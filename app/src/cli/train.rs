@@ -38,6 +38,12 @@ fn max_workers() -> u64 {
     (2 * cores).max(64)
 }
 
+/// The model file `--init` names.
+fn read_init(path: &str) -> Result<Vec<u8>> {
+    std::fs::read(path)
+        .map_err(|e| CliError::bad_input(format!("--init {path}: cannot read it: {e}")))
+}
+
 fn unit_interval(text: &str) -> std::result::Result<f64, String> {
     match text.parse::<f64>() {
         Ok(v) if (0.0..=1.0).contains(&v) => Ok(v),
@@ -148,14 +154,9 @@ impl TrainArgs {
                             .starting_from(bytes.to_vec(), &name)
                             .map_err(CliError::failure)?
                     }
-                    path => {
-                        let bytes = std::fs::read(path).map_err(|e| {
-                            CliError::bad_input(format!("--init {path}: cannot read it: {e}"))
-                        })?;
-                        stage
-                            .starting_from(bytes, path)
-                            .map_err(CliError::bad_input)?
-                    }
+                    path => stage
+                        .starting_from(read_init(path)?, path)
+                        .map_err(CliError::bad_input)?,
                 };
                 let config = TrainConfig {
                     width: stage.net().width,
@@ -203,14 +204,9 @@ impl TrainArgs {
                     "shipped" => stage
                         .starting_from(SHIPPED_STAGE1.to_vec(), "shipped stage-1 model")
                         .map_err(CliError::failure)?,
-                    path => {
-                        let bytes = std::fs::read(path).map_err(|e| {
-                            CliError::bad_input(format!("--init {path}: cannot read it: {e}"))
-                        })?;
-                        stage
-                            .starting_from(bytes, path)
-                            .map_err(CliError::bad_input)?
-                    }
+                    path => stage
+                        .starting_from(read_init(path)?, path)
+                        .map_err(CliError::bad_input)?,
                 };
                 let config = TrainConfig {
                     width: stage.net().width,

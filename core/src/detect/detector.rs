@@ -99,17 +99,7 @@ impl FamilyReader {
         let Some(pose) = &marker.pose else {
             return true;
         };
-        let kps = self.family.keypoints();
-        let pitch = kps
-            .iter()
-            .enumerate()
-            .flat_map(|(i, a)| {
-                kps[i + 1..]
-                    .iter()
-                    .map(move |b| (a.pos[0] - b.pos[0]).hypot(a.pos[1] - b.pos[1]))
-            })
-            .fold(f64::INFINITY, f64::min)
-            / self.family.roi_side();
+        let pitch = self.family.keypoint_pitch() / self.family.roi_side();
         let c = &marker.corners;
         let side = (0..4)
             .map(|i| (c[i][0] - c[(i + 1) % 4][0]).hypot(c[i][1] - c[(i + 1) % 4][1]))

@@ -133,6 +133,18 @@ impl Family {
         let [a, b] = [self.spec.roi.points[0], self.spec.roi.points[1]];
         (b[0] - a[0]).hypot(b[1] - a[1])
     }
+    /// The distance between the two closest keypoints, in marker units (a grid's cell pitch).
+    pub fn keypoint_pitch(&self) -> f64 {
+        let kps = &self.keypoints;
+        kps.iter()
+            .enumerate()
+            .flat_map(|(i, a)| {
+                kps[i + 1..]
+                    .iter()
+                    .map(move |b| (a.pos[0] - b.pos[0]).hypot(a.pos[1] - b.pos[1]))
+            })
+            .fold(f64::INFINITY, f64::min)
+    }
     /// The size of one cell in marker units (grids: 1; otherwise the largest keypoint cell).
     pub fn cell_size(&self) -> f64 {
         self.keypoints.iter().map(|k| k.size).fold(0.0, f64::max)

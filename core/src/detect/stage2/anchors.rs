@@ -45,16 +45,7 @@ impl PatchSpec {
     /// keypoints are at least two anchors apart on the template square: 128 for every built-in
     /// grid, 256 for RuneTag's inner ring (the reference uses 512 at stride 8, the same ratio).
     pub fn for_family(family: &crate::Family) -> Self {
-        let kps = family.keypoints();
-        let closest = kps
-            .iter()
-            .enumerate()
-            .flat_map(|(i, a)| {
-                kps[i + 1..]
-                    .iter()
-                    .map(move |b| (a.pos[0] - b.pos[0]).hypot(a.pos[1] - b.pos[1]))
-            })
-            .fold(f64::INFINITY, f64::min);
+        let closest = family.keypoint_pitch();
         let mut spec = Self::default();
         let square = 1.0 - 2.0 * spec.margin;
         while spec.size < 512

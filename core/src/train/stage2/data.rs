@@ -133,9 +133,8 @@ fn camera_cut(
         return Ok(None);
     };
     let patch = warp_bilinear(&sample.image, &to_image, spec.size, spec.size, 128);
-    let at = |p: [f64; 2]| to_patch.apply(p);
-    let mask: Vec<[f64; 2]> = truth.mask.iter().map(|&p| at(p)).collect();
-    let bbox = mask.iter().fold(
+    let truth = mapped(truth, |p| to_patch.apply(p));
+    let bbox = truth.mask.iter().fold(
         [
             f64::INFINITY,
             f64::INFINITY,
@@ -151,10 +150,15 @@ fn camera_cut(
             ]
         },
     );
-    let truth = MarkerTruth {
+    let truth = MarkerTruth { bbox, ..truth };
+    Ok(Some((patch, truth)))
+}
+
+/// The truth's ROI, outline and keypoints moved by `at` (the box is left as it is).
+fn mapped(truth: MarkerTruth, at: impl Fn([f64; 2]) -> [f64; 2]) -> MarkerTruth {
+    MarkerTruth {
         roi: truth.roi.iter().map(|&p| at(p)).collect(),
-        mask,
-        bbox,
+        mask: truth.mask.iter().map(|&p| at(p)).collect(),
         keypoints: truth
             .keypoints
             .iter()
@@ -164,8 +168,7 @@ fn camera_cut(
             })
             .collect(),
         ..truth
-    };
-    Ok(Some((patch, truth)))
+    }
 }
 
 /// The sample turned by its quarter turns, with its targets.
@@ -187,20 +190,7 @@ fn turned(
     } else {
         0
     };
-    let at = |p: [f64; 2]| turn(p, spec.size, quarter);
-    let truth = MarkerTruth {
-        roi: truth.roi.iter().map(|&p| at(p)).collect(),
-        mask: truth.mask.iter().map(|&p| at(p)).collect(),
-        keypoints: truth
-            .keypoints
-            .iter()
-            .map(|k| {
-                let [x, y] = at([k.x, k.y]);
-                KeypointTruth { x, y, ..k.clone() }
-            })
-            .collect(),
-        ..truth
-    };
+    let truth = mapped(truth, |p| turn(p, spec.size, quarter));
     let regressed: Vec<KeypointTruth> = family
         .regressed_keypoints()
         .iter()
