@@ -62,10 +62,9 @@ pub struct Stage2Result {
     pub missing: usize,
     /// Passes run (the second refines the first; a failed second pass keeps the first).
     pub iterations: usize,
-    /// Passes that decoded this ID, of those run or tried: a pass that decodes another ID or
-    /// nothing counts against it (`iterations` counts only passes that decoded).
-    pub agreeing_passes: usize,
-    pub tried_passes: usize,
+    /// Every pass tried decoded this ID (a pass that decodes another ID or nothing breaks it;
+    /// `iterations` counts only the passes that decoded).
+    pub passes_agree: bool,
     /// The alignment against the rendering (`--refine full`).
     pub refinement: Option<RefineReport>,
     #[serde(skip)]
@@ -174,26 +173,22 @@ impl Stage2 {
     ) -> Option<Stage2Result> {
         let mut roi = first.corners;
         let mut result = first;
-        let mut agreeing = 1;
-        let mut tried = 1;
+        let mut passes_agree = true;
         for pass in 1..options.iterations.max(1) {
-            tried += 1;
             match self.pass(image, &roi) {
                 Some(mut r) => {
-                    if r.id == result.id {
-                        agreeing += 1;
-                    } else {
-                        agreeing = 1;
-                    }
+                    passes_agree &= r.id == result.id;
                     r.iterations = pass + 1;
                     roi = r.corners;
                     result = r;
                 }
-                None => break,
+                None => {
+                    passes_agree = false;
+                    break;
+                }
             }
         }
-        result.agreeing_passes = agreeing;
-        result.tried_passes = tried;
+        result.passes_agree = passes_agree;
         let lens = camera.map_or(Lens::Pixels, |(c, _)| Lens::Camera(c));
         let kps = self.family.keypoints();
         let canonical: Vec<[f64; 2]> = result.keypoints.iter().map(|k| kps[k.index].pos).collect();
@@ -286,8 +281,7 @@ impl Stage2 {
             missing: family.regressed_keypoints().len() - keypoints.len(),
             keypoints,
             iterations: 1,
-            agreeing_passes: 1,
-            tried_passes: 1,
+            passes_agree: true,
             refinement: None,
             pose: None,
         })

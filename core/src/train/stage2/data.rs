@@ -9,7 +9,7 @@
 use crate::detect::stage2::anchors::{encode, PatchSpec, Targets};
 use crate::detect::stage2::normalise_patch;
 use crate::family::Family;
-use crate::geometry::{warp_bilinear, Homography};
+use crate::geometry::{bounding_box, warp_bilinear, Homography};
 use crate::image::GrayImage;
 use crate::synth::{synthesize, KeypointTruth, MarkerTruth, Mode, SynthConfig};
 use rand::{Rng, SeedableRng};
@@ -18,7 +18,7 @@ use rand_chacha::ChaCha8Rng;
 /// The share of training patches cut from camera views when a run does not say otherwise.
 /// Patch mode draws the marker at patch resolution under mild perspective; a steep view of a
 /// small marker reaches stage 2 as a patch stretched ~10× along one axis, which patch mode never
-/// shows it (BENCHMARKS.md, "Steep views in stage 2's training").
+/// shows it (BENCHMARKS.md, "Now: stage 2 trained on steep camera views, and stricter reads").
 pub const DEFAULT_CAMERA_SHARE: f64 = 0.3;
 
 /// One training patch with its targets.
@@ -134,22 +134,7 @@ fn camera_cut(
     };
     let patch = warp_bilinear(&sample.image, &to_image, spec.size, spec.size, 128);
     let truth = mapped(truth, |p| to_patch.apply(p));
-    let bbox = truth.mask.iter().fold(
-        [
-            f64::INFINITY,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            f64::NEG_INFINITY,
-        ],
-        |b, p| {
-            [
-                b[0].min(p[0]),
-                b[1].min(p[1]),
-                b[2].max(p[0]),
-                b[3].max(p[1]),
-            ]
-        },
-    );
+    let bbox = bounding_box(&truth.mask);
     let truth = MarkerTruth { bbox, ..truth };
     Ok(Some((patch, truth)))
 }
