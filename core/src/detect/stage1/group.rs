@@ -415,10 +415,15 @@ pub fn nested(a: &[[f64; 2]; 4], b: &[[f64; 2]; 4]) -> bool {
 /// Whether two proposals mark the same quad: every corner within a fifth of the shorter side of
 /// the other's, from any starting corner.
 pub fn same_quad(a: &Proposal, b: &Proposal) -> bool {
-    let side = shortest_side(&a.corners).min(shortest_side(&b.corners));
+    same_corners(&a.corners, &b.corners)
+}
+
+/// [`same_quad`] for bare corners.
+pub fn same_corners(a: &[[f64; 2]; 4], b: &[[f64; 2]; 4]) -> bool {
+    let side = shortest_side(a).min(shortest_side(b));
     (0..4).any(|shift| {
         (0..4).all(|i| {
-            let d = sub(a.corners[(i + shift) % 4], b.corners[i]);
+            let d = sub(a[(i + shift) % 4], b[i]);
             d[0].hypot(d[1]) < 0.2 * side
         })
     })

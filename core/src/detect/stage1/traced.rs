@@ -9,6 +9,7 @@
 //! [`TraceOptions::window`] px), so shading across the image does not matter. Like every ROI,
 //! a traced quad is only a proposal: stage 2 decides, so a blob of clutter costs one read.
 
+use super::group::same_corners;
 use super::outline::{contrast_range, cross, noise_sigma};
 use crate::image::GrayImage;
 
@@ -24,8 +25,11 @@ pub struct TraceOptions {
     pub window: u32,
     /// How much darker than that mean a pixel must be, as a share of the image's range of gray
     /// levels (its 2–98 % spread): a border against its quiet zone spans most of the range, while
-    /// texture and shading step by a fraction of it.
-    pub offset: f32,
+    /// texture and shading step by a fraction of it. The image is traced at each: the first
+    /// keeps a close marker's border whole; the second, stricter, parts a steep marker from
+    /// the darker ground around it, which its bright quiet zone lifts the box's mean above
+    /// (a sliver 7 px across on gray ground joined its neighbours' texture at the first).
+    pub offsets: [f32; 2],
     /// The shortest side of a quad, in pixels.
     pub min_side: f64,
     /// The smallest quad, in square pixels.
@@ -46,7 +50,7 @@ impl Default for TraceOptions {
     fn default() -> Self {
         Self {
             window: 15,
-            offset: 0.1,
+            offsets: [0.1, 0.3],
             min_side: 4.0,
             min_area: 150.0,
             fit: 0.85,
@@ -84,12 +88,17 @@ pub fn traced_quads_near(
     }
     let mut quads: Vec<([[f64; 2]; 4], f64)> = Vec::new();
     // Darker by a share of the whole image's range, not the crop's.
-    let offset = (options.offset * contrast_range(image)).max(MIN_OFFSET);
+    let range = contrast_range(image);
     for [x0, y0, x1, y1] in regions(image.width, image.height, spots) {
         let crop = image.crop(x0, y0, x1 - x0, y1 - y0);
-        for q in traced_quads(&crop, offset, options) {
-            let q = fitted_to_edges(&crop, q).map(|p| [p[0] + x0 as f64, p[1] + y0 as f64]);
-            quads.push((q, polygon_area(&q)));
+        for share in options.offsets {
+            let offset = (share * range).max(MIN_OFFSET);
+            for q in traced_quads(&crop, offset, options) {
+                let q = fitted_to_edges(&crop, q).map(|p| [p[0] + x0 as f64, p[1] + y0 as f64]);
+                if !quads.iter().any(|(seen, _)| same_corners(seen, &q)) {
+                    quads.push((q, polygon_area(&q)));
+                }
+            }
         }
     }
     quads.sort_by(|a, b| b.1.total_cmp(&a.1));
@@ -638,6 +647,29 @@ mod tests {
         let best = quads.first().expect("the sliver is traced");
         assert!(matches(best, &SLIVER, 1.5), "{best:?}");
         assert!(polygon_area(best) > 0.0, "clockwise in the image");
+    }
+
+    #[test]
+    fn a_steep_marker_on_textured_ground_is_parted_from_it_by_the_stricter_offset() {
+        // A 36h11 marker 90 cm away at 60°, 7 px across (`tagsmith eval generate apriltag-36h11
+        // --seed 9`, image 86, cut at x 372–492, y 262–352): its quiet zone lifts the box means
+        // over the gray ground beside it, which joins its blob at the lenient offset.
+        let bytes = include_bytes!("testdata/steep-marker-on-texture.png");
+        let image = crate::image::decode(bytes, &Default::default()).expect("the fixture decodes");
+        let truth = [[80.0, 33.7], [45.9, 59.3], [40.6, 54.3], [73.0, 30.0]];
+        let options = TraceOptions::default();
+        let lenient = traced_quads(
+            &image,
+            options.offsets[0] * contrast_range(&image),
+            &options,
+        );
+        assert!(
+            !lenient.iter().any(|q| matches(q, &truth, 2.5)),
+            "the lenient offset alone already parts it, so the fixture no longer shows the case: {lenient:?}"
+        );
+        let everywhere = [[0.0, 0.0, 119.0, 89.0]];
+        let both = traced_quads_near(&image, &everywhere, &options);
+        assert!(both.iter().any(|q| matches(q, &truth, 2.5)), "{both:?}");
     }
 
     #[test]
