@@ -73,6 +73,10 @@ pub struct DetectArgs {
     /// a typical image, about 30 ms on a cluttered photograph).
     #[arg(long)]
     pub no_outline: bool,
+    /// Read only through stage 2's network: no cell reads straight off the image for the ROIs
+    /// it reads nothing from (black-and-white grid families).
+    #[arg(long)]
+    pub no_cell_reads: bool,
     /// Write the detections file (the harness's format, for `tagsmith eval score`).
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -269,6 +273,7 @@ impl DetectArgs {
             .options
             .propose
             .set_image_searches(!self.no_outline);
+        detector.options.cell_reads = !self.no_cell_reads;
         if let Some(dir) = &self.annotate {
             std::fs::create_dir_all(dir)
                 .with_context(|| format!("cannot create the folder {}", dir.display()))
@@ -360,6 +365,9 @@ pub struct DetectSetArgs {
     /// With --full: no outlined or traced quads (as `detect --no-outline`).
     #[arg(long)]
     pub no_outline: bool,
+    /// With --full: no cell reads (as `detect --no-cell-reads`).
+    #[arg(long)]
+    pub no_cell_reads: bool,
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
 }
@@ -410,6 +418,7 @@ impl DetectSetArgs {
                 .options
                 .propose
                 .set_image_searches(!self.no_outline);
+            detector.options.cell_reads = !self.no_cell_reads;
             let file = set::run_detector(&self.set, &s, &mut detector, &include)?;
             let json = serde_json::to_string_pretty(&file).failure()?;
             write_output(&self.output, json.as_bytes())?;
@@ -576,6 +585,7 @@ mod tests {
             corner_threshold: 0.3,
             upsample: false,
             no_outline: false,
+            no_cell_reads: false,
             json: None,
             sequential: false,
             side_mm: None,

@@ -48,6 +48,11 @@ pub struct Scores {
     /// Reprojection error of the pose, pixels (absent without a pose).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub reprojection_rms_px: Option<f64>,
+    /// The code was read from the cells straight off the image, not by stage 2's network (a
+    /// sliver the network could not read; the keypoints' confidences are then how far each
+    /// cell's gray level lies from the other category's).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub cell_read: bool,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -3,17 +3,29 @@
 //! dropped — a false ROI costs stage-2 passes, never a wrong ID. The CLI, the harness and the
 //! studio all detect through [`Detector::detect`].
 
+use super::cells::{CellRead, CellReader};
 use super::stage1::group::{nested, same_quad, Proposal};
 use super::stage1::pipeline::Outlined;
 use super::stage1::{ProposeOptions, Stage1};
 use super::stage2::model_file::ModelError;
 use super::stage2::{shipped_model, ReadOptions, Stage2, Stage2Result};
-use super::{BenchDetector, Detection, Scores};
-use crate::family::Family;
+use super::{BenchDetector, DetectedKeypoint, Detection, Scores};
+use crate::family::{Assignment, Family};
+use crate::geometry::Homography;
 use crate::geometry::{Camera, PoseJson};
 use crate::image::GrayImage;
 use crate::io::Stopwatch;
 use serde::Serialize;
+
+impl Default for DetectorOptions {
+    fn default() -> Self {
+        Self {
+            propose: ProposeOptions::default(),
+            read: ReadOptions::default(),
+            cell_reads: true,
+        }
+    }
+}
 
 /// One family's stage 2 and the marker size its poses assume.
 pub struct FamilyReader {
@@ -21,12 +33,17 @@ pub struct FamilyReader {
     pub stage2: Stage2,
     /// ROI side in metres.
     pub side_m: f64,
+    /// Reads cells straight off the image where stage 2 reads nothing (flat-celled families).
+    pub cells: Option<CellReader>,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DetectorOptions {
     pub propose: ProposeOptions,
     pub read: ReadOptions,
+    /// Read the cells of ROIs stage 2 reads nothing from straight off the image (flat-celled
+    /// families only).
+    pub cell_reads: bool,
 }
 
 /// Where an image's time went.
@@ -49,6 +66,8 @@ pub struct Found {
     pub marker: Stage2Result,
     /// Stage 1's ROI for it.
     pub proposal: Proposal,
+    /// Read from its cells straight off the image, not by stage 2's network.
+    pub cell_read: bool,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -82,10 +101,12 @@ pub struct Detector {
 impl FamilyReader {
     pub fn new(family: Family, stage2: Stage2) -> Self {
         let side_m = family.spec().print.marker_side_mm / 1000.0;
+        let cells = CellReader::new(&family);
         Self {
             family,
             stage2,
             side_m,
+            cells,
         }
     }
 
@@ -324,12 +345,105 @@ impl Detector {
                         family: reader.family.name().into(),
                         marker,
                         proposal: proposals[i],
+                        cell_read: false,
+                    });
+                }
+            }
+        }
+        // Where no family's network reads a ROI, its cells may still be read straight off the
+        // image (§9.8 "Cell reads"), once the ROI is fitted to the marker's frame: held to half
+        // the family's limit in the code and in the frame. The alignment with the rendering
+        // still runs, but a sliver's is refused (its residual does not drop on 1-px cells), so
+        // it is not asked for.
+        let unread: Vec<usize> = (0..proposals.len())
+            .filter(|&i| best[i].is_none())
+            .collect();
+        if !self.options.cell_reads || unread.is_empty() {
+            return best;
+        }
+        for reader in &self.readers {
+            let Some(cells) = &reader.cells else {
+                continue;
+            };
+            let limit = reader.family.codebook().max_correction() / 2;
+            let single = ReadOptions {
+                iterations: 1,
+                ..self.options.read
+            };
+            use rayon::prelude::*;
+            let read: Vec<(usize, Stage2Result)> = unread
+                .par_iter()
+                .with_max_len(1)
+                .filter_map(|&i| {
+                    let cell_read =
+                        cells.read(&reader.family, image, &proposals[i].corners, limit)?;
+                    let first = cell_result(&reader.family, &cell_read)?;
+                    let marker = reader.stage2.continue_from(
+                        image,
+                        first,
+                        &single,
+                        camera.map(|c| (c, reader.side_m)),
+                    )?;
+                    (marker.fixed_mismatches <= limit).then_some((i, marker))
+                })
+                .collect();
+            for (i, marker) in read {
+                if best[i]
+                    .as_ref()
+                    .is_none_or(|b| marker.corrected_errors < b.marker.corrected_errors)
+                {
+                    best[i] = Some(Found {
+                        family: reader.family.name().into(),
+                        marker,
+                        proposal: proposals[i],
+                        cell_read: true,
                     });
                 }
             }
         }
         best
     }
+}
+
+/// A cell read as stage 2's first pass would give it: every keypoint where the ROI's homography
+/// puts it, in the family's canonical order.
+fn cell_result(family: &Family, read: &CellRead) -> Option<Stage2Result> {
+    let rotation = &family.rotations()[read.decoded.rotation];
+    let kps = family.keypoints();
+    let keypoints: Vec<DetectedKeypoint> = (0..kps.len())
+        .map(|i| {
+            let slot = rotation.keypoint_perm[i];
+            let [x, y] = read.centres[slot];
+            let category = read.observed[slot];
+            DetectedKeypoint {
+                index: i,
+                x,
+                y,
+                category,
+                symbol: matches!(kps[i].assignment, Assignment::Symbol(_))
+                    .then(|| family.category_symbol(category))
+                    .flatten(),
+                confidence: read.margins[slot],
+            }
+        })
+        .collect();
+    let canonical: Vec<[f64; 2]> = kps.iter().map(|k| k.pos).collect();
+    let pixels: Vec<[f64; 2]> = keypoints.iter().map(|k| [k.x, k.y]).collect();
+    let to_pixels = Homography::from_points(&canonical, &pixels).ok()?;
+    let roi = family.roi_points();
+    Some(Stage2Result {
+        id: read.decoded.id,
+        rotation_deg: rotation.angle_deg,
+        corrected_errors: read.decoded.corrected_errors,
+        fixed_mismatches: read.decoded.fixed_mismatches,
+        corners: std::array::from_fn(|j| to_pixels.apply(roi[j])),
+        missing: 0,
+        keypoints,
+        iterations: 1,
+        passes_agree: true,
+        refinement: None,
+        pose: None,
+    })
 }
 
 /// The largest keypoint reprojection RMS, in cell pitches, of a read that needed more than the
@@ -450,6 +564,7 @@ impl Found {
                 keypoints: confidence,
                 corrected_errors: m.corrected_errors,
                 reprojection_rms_px: m.pose.as_ref().map(|p| p.rms_px),
+                cell_read: self.cell_read,
             }),
         }
     }

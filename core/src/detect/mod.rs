@@ -3,6 +3,7 @@
 //! interface the evaluation harness runs.
 
 pub mod annotate;
+pub mod cells;
 mod detection;
 #[cfg(feature = "detect")]
 pub mod detector;

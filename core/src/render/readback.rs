@@ -110,6 +110,16 @@ impl Reader {
         out
     }
 
+    /// The darkest and the lightest gray level sampled in a category's cell, in any quarter
+    /// turn: close together for a flat black or white cell, far apart for a glyph.
+    pub fn gray_range(&self, category: usize) -> (f64, f64) {
+        self.templates
+            .iter()
+            .filter(|(c, _, _)| *c == category)
+            .flat_map(|(_, _, t)| t.iter().copied())
+            .fold((f64::MAX, f64::MIN), |(lo, hi), v| (lo.min(v), hi.max(v)))
+    }
+
     /// Mean gray level (0 black – 255 white) of a category's cell.
     pub fn mean_gray(&self, category: usize) -> f64 {
         let (_, _, t) = self

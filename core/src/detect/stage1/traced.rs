@@ -37,12 +37,15 @@ pub struct TraceOptions {
     /// The least share of the blob's convex hull its quad covers: a quadrilateral blob is
     /// covered almost whole, a disc by 64 %, a triangle by at most 75 %.
     pub fit: f64,
-    /// The mask's value that marks a spot to trace around.
+    /// The mask's value that marks a spot to trace around. Below one half: a sliver a few
+    /// pixels across 60–90 cm away lights the mask to 0.3–0.5 only (development sets 10–13:
+    /// three of 260 Difficult markers had no spot at 0.5, and are read from one at 0.3).
     pub mask: f64,
     /// The least mean of the network's marker mask inside a quad, at the level where it is
     /// highest: dark rectangles of clutter trace as well as markers do. Low, because the quad
     /// is only traced near a spot already: a marker seen steep from 10 cm is long, and the
-    /// network's mask covers a fifth of it (development sets: 0.18–0.19 on both such misses).
+    /// network's mask covers a fifth of it (development sets: 0.18–0.19 on both such misses);
+    /// slivers far away cover a few of its cells, which the mask only partly lights.
     pub support: f64,
 }
 
@@ -54,8 +57,8 @@ impl Default for TraceOptions {
             min_side: 4.0,
             min_area: 150.0,
             fit: 0.85,
-            mask: 0.5,
-            support: 0.15,
+            mask: 0.3,
+            support: 0.1,
         }
     }
 }
