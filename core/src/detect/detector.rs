@@ -238,6 +238,24 @@ impl Detector {
             &mut rounds,
             &mut timings,
         );
+        // Last, the cells of the ROIs no network read, away from every marker read: after
+        // every round, so that a cell read of a poor ROI never takes a marker's place from a
+        // network read of a better one (dev seed 16 #6, 10 cm away: a cell read of a stage-1
+        // ROI with its corners 80 px off covered the ROI stage 2 read right a round later).
+        if self.options.cell_reads {
+            let mut left: Vec<Proposal> = Vec::new();
+            for p in &rounds.failed {
+                let covered = rounds
+                    .found
+                    .iter()
+                    .any(|f| nested(&f.marker.corners, &p.corners));
+                if !covered && !left.iter().any(|q| same_quad(q, p)) {
+                    left.push(*p);
+                }
+            }
+            let reads = self.cell_reads(image, &left, camera);
+            rounds.found.extend(reads.into_iter().flatten());
+        }
         timings.proposals = rounds.read.len();
         // Markers do not overlap: of two reads where either's centre lies inside the other (the
         // same marker read twice, or a quad over part of a marker and its surroundings read as
@@ -350,17 +368,20 @@ impl Detector {
                 }
             }
         }
-        // Where no family's network reads a ROI, its cells may still be read straight off the
-        // image (§9.8 "Cell reads"), once the ROI is fitted to the marker's frame: held to half
-        // the family's limit in the code and in the frame. The alignment with the rendering
-        // still runs, but a sliver's is refused (its residual does not drop on 1-px cells), so
-        // it is not asked for.
-        let unread: Vec<usize> = (0..proposals.len())
-            .filter(|&i| best[i].is_none())
-            .collect();
-        if !self.options.cell_reads || unread.is_empty() {
-            return best;
-        }
+        best
+    }
+
+    /// Cell reads of the ROIs no family's network read (§9.8 "Cell reads"), once each is
+    /// fitted to the marker's frame: held to half the family's limit in the code and in the
+    /// frame. The alignment with the rendering still runs, but a sliver's is refused (its
+    /// residual does not drop on 1-px cells), so it is not asked for.
+    fn cell_reads(
+        &self,
+        image: &GrayImage,
+        proposals: &[Proposal],
+        camera: Option<&Camera>,
+    ) -> Vec<Option<Found>> {
+        let mut best: Vec<Option<Found>> = vec![None; proposals.len()];
         for reader in &self.readers {
             let Some(cells) = &reader.cells else {
                 continue;
@@ -371,12 +392,12 @@ impl Detector {
                 ..self.options.read
             };
             use rayon::prelude::*;
-            let read: Vec<(usize, Stage2Result)> = unread
+            let read: Vec<(usize, Stage2Result)> = proposals
                 .par_iter()
+                .enumerate()
                 .with_max_len(1)
-                .filter_map(|&i| {
-                    let cell_read =
-                        cells.read(&reader.family, image, &proposals[i].corners, limit)?;
+                .filter_map(|(i, proposal)| {
+                    let cell_read = cells.read(&reader.family, image, &proposal.corners, limit)?;
                     let first = cell_result(&reader.family, &cell_read)?;
                     let marker = reader.stage2.continue_from(
                         image,
