@@ -20,7 +20,9 @@ for family in apriltag-36h11 aruco-6x6_250; do
   detectors="opencv"
   [ "$family" = apriltag-36h11 ] && detectors="apriltag opencv"
   for d in $detectors; do
-    $PY bench/baselines.py "$set_dir" --detector $d -o "$out/$family-$d.json" >/dev/null
+    # To a log, not /dev/null: pupil-apriltags under this venv segfaults writing to /dev/null
+    # (2026-12-02; the same run to a file is fine).
+    $PY bench/baselines.py "$set_dir" --detector $d -o "$out/$family-$d.json" >"$out/$family-$d.log"
   done
   $T detect-set "$set_dir" --full -o "$out/$family-tagsmith.json"
   for f in "$out/$family"-*.json; do
