@@ -353,20 +353,7 @@ impl Detector {
                     && (m.corrected_errors <= limit || reader.rigid(m))
                     && (m.corrected_errors <= limit / 2 || m.passes_agree)
             });
-            for (i, marker) in read {
-                // Two families reading one ROI: the one whose code needed fewer corrections.
-                if best[i]
-                    .as_ref()
-                    .is_none_or(|b| marker.corrected_errors < b.marker.corrected_errors)
-                {
-                    best[i] = Some(Found {
-                        family: reader.family.name().into(),
-                        marker,
-                        proposal: proposals[i],
-                        cell_read: false,
-                    });
-                }
-            }
+            keep_fewest_corrections(&mut best, reader, proposals, read, false);
         }
         best
     }
@@ -408,21 +395,33 @@ impl Detector {
                     (marker.fixed_mismatches <= limit).then_some((i, marker))
                 })
                 .collect();
-            for (i, marker) in read {
-                if best[i]
-                    .as_ref()
-                    .is_none_or(|b| marker.corrected_errors < b.marker.corrected_errors)
-                {
-                    best[i] = Some(Found {
-                        family: reader.family.name().into(),
-                        marker,
-                        proposal: proposals[i],
-                        cell_read: true,
-                    });
-                }
-            }
+            keep_fewest_corrections(&mut best, reader, proposals, read, true);
         }
         best
+    }
+}
+
+/// Files one family's reads (proposal index, marker) into `best`: where two families read one
+/// ROI, the one whose code needed fewer corrections stays.
+fn keep_fewest_corrections(
+    best: &mut [Option<Found>],
+    reader: &FamilyReader,
+    proposals: &[Proposal],
+    reads: impl IntoIterator<Item = (usize, Stage2Result)>,
+    cell_read: bool,
+) {
+    for (i, marker) in reads {
+        if best[i]
+            .as_ref()
+            .is_none_or(|b| marker.corrected_errors < b.marker.corrected_errors)
+        {
+            best[i] = Some(Found {
+                family: reader.family.name().into(),
+                marker,
+                proposal: proposals[i],
+                cell_read,
+            });
+        }
     }
 }
 
