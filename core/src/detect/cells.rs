@@ -22,6 +22,19 @@ pub struct CellReader {
     known: Vec<([f64; 2], f64)>,
     /// Marker units → the unit square spanned by ROI points 0–3.
     to_unit: Homography,
+    /// The lightest category's level less the darkest's.
+    level_range: f64,
+}
+
+/// Where the known points fit their levels best, and how well ([`CellReader::fit`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Fitted {
+    roi: [[f64; 2]; 4],
+    /// The fitted black-to-white step over the residuals' spread.
+    score: f64,
+    /// Level → gray: `gray = gain · level + offset`.
+    gain: f64,
+    offset: f64,
 }
 
 /// The read of one ROI.
@@ -37,7 +50,8 @@ pub struct CellRead {
     pub margins: Vec<f64>,
     /// The fitted ROI (ROI points 0–3 in the image).
     pub roi: [[f64; 2]; 4],
-    /// How well the known cells and the quiet zone fit their levels there ([`CellReader::fit`]).
+    /// How well the known cells and the quiet zone fit their levels there (the frame fit's
+    /// score; a read needs at least 3).
     pub fit: f64,
 }
 
@@ -112,10 +126,13 @@ impl CellReader {
         }
         let unit = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
         let to_unit = Homography::from_points(&family.roi_points()[..4], &unit).ok()?;
+        let level_range = levels.iter().copied().fold(f64::MIN, f64::max)
+            - levels.iter().copied().fold(f64::MAX, f64::min);
         Some(Self {
             levels,
             known,
             to_unit,
+            level_range,
         })
     }
 
@@ -126,8 +143,8 @@ impl CellReader {
 
     /// How well the known points fit their levels with the marker at `roi`: the fitted
     /// black-to-white step over the residuals' spread (gray levels), with the fit's gain and
-    /// offset (level → gray). `None` off the image or where the levels do not spread.
-    fn score(&self, image: &GrayImage, roi: &[[f64; 2]; 4]) -> Option<(f64, f64, f64)> {
+    /// offset. `None` off the image or where the levels do not spread.
+    fn score(&self, image: &GrayImage, roi: &[[f64; 2]; 4]) -> Option<Fitted> {
         let to_image = self.to_image(roi)?;
         let mut pairs = Vec::with_capacity(self.known.len());
         for &(p, level) in &self.known {
@@ -139,31 +156,32 @@ impl CellReader {
             .map(|&(x, y)| (y - gain * x - offset).powi(2))
             .sum::<f64>()
             / pairs.len() as f64;
-        let range = self.levels.iter().copied().fold(f64::MIN, f64::max)
-            - self.levels.iter().copied().fold(f64::MAX, f64::min);
-        Some((gain * range / (residual + 1.0).sqrt(), gain, offset))
+        Some(Fitted {
+            roi: *roi,
+            score: gain * self.level_range / (residual + 1.0).sqrt(),
+            gain,
+            offset,
+        })
     }
 
     /// Moves the ROI's corners to where the fixed cells and the quiet zone fit their levels
     /// best (coordinate ascent, 2 px steps down to a quarter pixel). A steep sliver's cells are
     /// a pixel or two wide, and a quad traced or grouped a few pixels off samples its
-    /// neighbours; the frame, which is known whatever the code, pins it down. Returns the ROI
-    /// and its score.
-    pub fn fit(&self, image: &GrayImage, roi: &[[f64; 2]; 4]) -> Option<([[f64; 2]; 4], f64)> {
-        let mut best = *roi;
-        let mut score = self.score(image, roi)?.0;
+    /// neighbours; the frame, which is known whatever the code, pins it down.
+    fn fit(&self, image: &GrayImage, roi: &[[f64; 2]; 4]) -> Option<Fitted> {
+        let mut best = self.score(image, roi)?;
         for (round, step) in FIT_STEPS.into_iter().enumerate() {
             // A quad that the coarsest step leaves far from fitting sits on clutter, or too far
             // from a marker to be pulled in: the finer steps are not spent on it.
-            if round == 1 && score < GIVE_UP_FIT {
-                return Some((best, score));
+            if round == 1 && best.score < GIVE_UP_FIT {
+                return Some(best);
             }
             for _ in 0..FIT_SWEEPS {
                 let mut moved = false;
                 for corner in 0..4 {
                     for axis in 0..2 {
                         for sign in [-1.0, 1.0] {
-                            let mut trial = best;
+                            let mut trial = best.roi;
                             trial[corner][axis] += sign * step;
                             let [dx, dy] = [
                                 trial[corner][0] - roi[corner][0],
@@ -172,9 +190,9 @@ impl CellReader {
                             if dx.hypot(dy) > MAX_FIT_SHIFT {
                                 continue;
                             }
-                            if let Some((s, _, _)) = self.score(image, &trial) {
-                                if s > score {
-                                    (best, score, moved) = (trial, s, true);
+                            if let Some(fitted) = self.score(image, &trial) {
+                                if fitted.score > best.score {
+                                    (best, moved) = (fitted, true);
                                 }
                             }
                         }
@@ -185,7 +203,7 @@ impl CellReader {
                 }
             }
         }
-        Some((best, score))
+        Some(best)
     }
 
     /// Reads the marker in `roi` (the family's first four ROI points in the image), once its
@@ -197,11 +215,15 @@ impl CellReader {
         roi: &[[f64; 2]; 4],
         max_errors: usize,
     ) -> Option<CellRead> {
-        let (roi, fit) = self.fit(image, roi)?;
+        let Fitted {
+            roi,
+            score: fit,
+            gain,
+            offset,
+        } = self.fit(image, roi)?;
         if fit < MIN_FIT {
             return None;
         }
-        let (_, gain, offset) = self.score(image, &roi)?;
         let to_image = self.to_image(&roi)?;
         let keypoints = family.keypoints();
         let centres: Vec<[f64; 2]> = keypoints.iter().map(|k| to_image.apply(k.pos)).collect();
@@ -326,7 +348,7 @@ mod tests {
         let family = family("apriltag-36h11");
         let image = crate::image::decode(SLIVER, &Default::default()).unwrap();
         let reader = CellReader::new(&family).unwrap();
-        let unfitted = reader.score(&image, &SLIVER_TRACED).unwrap().0;
+        let unfitted = reader.score(&image, &SLIVER_TRACED).unwrap().score;
         assert!(
             unfitted < MIN_FIT,
             "the traced quad already fits: {unfitted}"

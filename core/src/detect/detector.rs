@@ -17,16 +17,6 @@ use crate::image::GrayImage;
 use crate::io::Stopwatch;
 use serde::Serialize;
 
-impl Default for DetectorOptions {
-    fn default() -> Self {
-        Self {
-            propose: ProposeOptions::default(),
-            read: ReadOptions::default(),
-            cell_reads: true,
-        }
-    }
-}
-
 /// One family's stage 2 and the marker size its poses assume.
 pub struct FamilyReader {
     pub family: Family,
@@ -44,6 +34,16 @@ pub struct DetectorOptions {
     /// Read the cells of ROIs stage 2 reads nothing from straight off the image (flat-celled
     /// families only).
     pub cell_reads: bool,
+}
+
+impl Default for DetectorOptions {
+    fn default() -> Self {
+        Self {
+            propose: ProposeOptions::default(),
+            read: ReadOptions::default(),
+            cell_reads: true,
+        }
+    }
 }
 
 /// Where an image's time went.
