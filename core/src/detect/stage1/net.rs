@@ -10,7 +10,9 @@
 //! small head at one scale serves markers from 12 px to the whole image (≈ 0.15 GMAC per
 //! 640×480 at width 24). See [`macs`].
 
-use crate::detect::stage2::net::{stem, trunk_blocks, SeparableBlock};
+use crate::detect::stage2::net::{
+    batch_norm_unless, fold_batch_norm, stem, trunk_blocks, SeparableBlock,
+};
 use burn::module::Module;
 use burn::nn::conv::{Conv2d, Conv2dConfig};
 use burn::nn::{BatchNorm, BatchNormConfig};
@@ -36,6 +38,7 @@ impl NetConfig {
             trunk: trunk_blocks(w, device),
             head: SeparableBlock::new(w, w, 1, 1, device),
             out: Conv2dConfig::new([w, MAPS], [1, 1]).init(device),
+            folded: false,
         }
     }
 }
@@ -47,17 +50,39 @@ pub struct Stage1Net {
     trunk: Vec<SeparableBlock>,
     head: SeparableBlock,
     out: Conv2d,
+    /// See [`Stage1Net::fold_batch_norms`].
+    folded: bool,
 }
 
 impl Stage1Net {
     /// `x`: N × 1 × H × W normalised images (H, W multiples of [`super::STRIDE`]) → N × [`MAPS`] ×
     /// H/4 × W/4 raw maps (logits for heat and mask).
     pub fn forward(&self, x: Tensor<4>) -> Tensor<4> {
-        let mut x = relu(self.stem_bn.forward(self.stem.forward(x)));
+        let mut x = relu(batch_norm_unless(
+            self.folded,
+            &self.stem_bn,
+            self.stem.forward(x),
+        ));
         for block in &self.trunk {
             x = block.forward(x);
         }
         self.out.forward(self.head.forward(x))
+    }
+
+    /// The network for inference: every batch norm folded into its convolution (the same
+    /// function without the batch norms' passes; see `stage2::net::fold_batch_norm`).
+    pub fn fold_batch_norms(mut self) -> Self {
+        if !self.folded {
+            fold_batch_norm(&mut self.stem, &self.stem_bn);
+            self.trunk = self
+                .trunk
+                .into_iter()
+                .map(SeparableBlock::fold_batch_norms)
+                .collect();
+            self.head = self.head.fold_batch_norms();
+            self.folded = true;
+        }
+        self
     }
 }
 
@@ -73,4 +98,50 @@ pub fn macs(config: &NetConfig, pixels: u64) -> u64 {
     total += 3 * sep(quarter, w, w);
     total += sep(quarter, w, w);
     total + quarter * w * MAPS as u64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::model_file;
+    use super::super::pipeline::SHIPPED_STAGE1;
+    use burn::tensor::{Device, Tensor, TensorData};
+
+    /// Every detection runs the folded network: its maps must be the shipped network's.
+    #[test]
+    fn folded_batch_norms_compute_what_the_shipped_network_does() {
+        let device = Device::flex();
+        let (net, _) = model_file::from_bytes(SHIPPED_STAGE1, "shipped", &device).unwrap();
+        let (w, h) = (96, 64);
+        let pixels: Vec<f32> = (0..w * h)
+            .map(|i| {
+                let (x, y) = (i % w, i / w);
+                let inside = (20..52).contains(&x) && (16..48).contains(&y);
+                let cell = ((x / 8 + y / 8) % 2) as f32 * 1.2 - 0.6;
+                if inside {
+                    cell
+                } else {
+                    0.8 - ((x * 5 + y * 11) % 7) as f32 * 0.04
+                }
+            })
+            .collect();
+        let input =
+            || Tensor::<4>::from_data(TensorData::new(pixels.clone(), [1, 1, h, w]), &device);
+        let before = net
+            .forward(input())
+            .into_data()
+            .try_to_vec::<f32>()
+            .unwrap();
+        let after = (net.fold_batch_norms().forward(input()).into_data())
+            .try_to_vec::<f32>()
+            .unwrap();
+        let largest = before.iter().fold(1.0f32, |m, v| m.max(v.abs()));
+        let worst = before
+            .iter()
+            .zip(&after)
+            .fold(0.0f32, |m, (x, y)| m.max((x - y).abs()));
+        assert!(
+            worst <= 1e-4 * largest,
+            "maps differ by {worst} (largest {largest})"
+        );
+    }
 }

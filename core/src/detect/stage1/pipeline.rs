@@ -95,7 +95,7 @@ impl Stage1 {
 
     pub(crate) fn new(net: Stage1Net, header: Stage1Header, device: Device) -> Self {
         Self {
-            net,
+            net: net.fold_batch_norms(),
             config: header.net,
             header,
             device,

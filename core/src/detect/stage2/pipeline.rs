@@ -90,7 +90,7 @@ impl Stage2 {
             ..PatchSpec::default()
         };
         Self {
-            net,
+            net: net.fold_batch_norms(),
             config: header.net,
             spec,
             header,

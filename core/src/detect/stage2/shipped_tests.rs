@@ -93,3 +93,52 @@ fn decodes_noisy_markers(name: &str) {
         );
     }
 }
+
+/// Folding the batch norms (what every detection runs) must not change what the shipped
+/// network computes; a folded network written to a model file is refused on loading, not read as
+/// a different function.
+#[test]
+fn folded_batch_norms_compute_what_the_shipped_network_does() {
+    use super::model_file;
+    use burn::tensor::{Device, Tensor, TensorData};
+    let family = builtin::get("aruco-6x6_250").unwrap().unwrap();
+    let bytes = shipped_model(family.name()).unwrap();
+    let device = Device::flex();
+    let (net, header) = model_file::from_bytes(bytes, "shipped", &family, &device).unwrap();
+    let p = header.net.patch;
+    // A patch with structure at every scale: cells, edges and a gradient.
+    let pixels: Vec<f32> = (0..p * p)
+        .map(|i| {
+            let (x, y) = (i % p, i / p);
+            let cell = ((x / 16 + y / 16) % 2) as f32 * 1.6 - 0.8;
+            cell + (x as f32 / p as f32 - 0.5) * 0.4 + ((x * 7 + y * 13) % 5) as f32 * 0.05
+        })
+        .collect();
+    let input = || Tensor::<4>::from_data(TensorData::new(pixels.clone(), [1, 1, p, p]), &device);
+    let flat = |t: Tensor<4>| t.into_data().try_to_vec::<f32>().unwrap();
+    let outputs = |net: &super::net::Stage2Net| {
+        let o = net.forward(input());
+        [
+            flat(o.logits),
+            flat(o.offsets),
+            flat(o.mask),
+            flat(o.template),
+        ]
+    };
+    let before = outputs(&net);
+    let folded = net.fold_batch_norms();
+    for (a, b) in before.iter().zip(outputs(&folded)) {
+        let largest = a.iter().fold(1.0f32, |m, v| m.max(v.abs()));
+        let worst = a
+            .iter()
+            .zip(&b)
+            .fold(0.0f32, |m, (x, y)| m.max((x - y).abs()));
+        assert!(worst <= 1e-4 * largest, "outputs differ by {worst}");
+    }
+    let saved = model_file::to_bytes(folded, &header.net, &family, 1).unwrap();
+    let refused = model_file::from_bytes(&saved, "folded", &family, &device);
+    assert!(
+        refused.is_err(),
+        "a folded network loaded as an unfolded one"
+    );
+}
