@@ -412,15 +412,15 @@ pub fn nested(a: &[[f64; 2]; 4], b: &[[f64; 2]; 4]) -> bool {
     inside(a, quad_centre(b)) || inside(b, quad_centre(a))
 }
 
-/// Whether two proposals mark the same quad: every corner within a fifth of the shorter side of
-/// the other's, from any starting corner.
+/// Whether two proposals mark the same quad: every corner within a fifth of the thinner quad's
+/// width ([`width`]) of the other's, from any starting corner.
 pub fn same_quad(a: &Proposal, b: &Proposal) -> bool {
     same_corners(&a.corners, &b.corners)
 }
 
 /// [`same_quad`] for bare corners.
 pub fn same_corners(a: &[[f64; 2]; 4], b: &[[f64; 2]; 4]) -> bool {
-    let side = shortest_side(a).min(shortest_side(b));
+    let side = width(a).min(width(b));
     (0..4).any(|shift| {
         (0..4).all(|i| {
             let d = sub(a[(i + shift) % 4], b[i]);
@@ -456,6 +456,22 @@ pub fn merge_duplicates(mut proposals: Vec<Proposal>) -> Vec<Proposal> {
         }
     }
     kept
+}
+
+/// How thin the quad is: its shortest side, or the width across its longer diagonal where that is
+/// less. A marker turned steeply about its diagonal is a rhombus 80 px a side and 10 px across
+/// (dev seed 11 #27); judged by its sides, a quad 16 px off a corner of it was "the same", and
+/// its traced quad, 1 px off, was never read once that one had failed.
+fn width(q: &[[f64; 2]; 4]) -> f64 {
+    let diagonal = |i: usize| {
+        let d = sub(q[i + 2], q[i]);
+        d[0].hypot(d[1])
+    };
+    let longer = diagonal(0).max(diagonal(1));
+    if longer <= 0.0 {
+        return 0.0;
+    }
+    shortest_side(q).min(signed_area(q).abs() / longer)
 }
 
 fn shortest_side(q: &[[f64; 2]; 4]) -> f64 {
@@ -550,6 +566,25 @@ mod tests {
         assert!(same_quad(&p(q), &p(turned)));
         let moved = q.map(|[x, y]| [x + 8.0, y]);
         assert!(!same_quad(&p(q), &p(moved)));
+    }
+
+    #[test]
+    fn a_sliver_is_the_same_quad_only_within_a_fifth_of_its_width() {
+        // A rhombus 86 px a side and 10 px across its long diagonal (a marker turned about its
+        // diagonal, seen nearly edge-on).
+        let sliver = [[0.0, 0.0], [85.0, -5.0], [170.0, 0.0], [85.0, 5.0]];
+        let p = |corners| Proposal {
+            corners,
+            score: 1.0,
+        };
+        let nudged = sliver.map(|[x, y]| [x + 1.5, y]);
+        assert!(same_quad(&p(sliver), &p(nudged)));
+        let mut far_tip = sliver;
+        far_tip[0][0] -= 16.0;
+        assert!(!same_quad(&p(sliver), &p(far_tip)));
+        // From another corner, still the same.
+        let turned = [sliver[2], sliver[3], sliver[0], sliver[1]];
+        assert!(same_quad(&p(sliver), &p(turned)));
     }
 
     #[test]
