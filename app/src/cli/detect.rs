@@ -67,10 +67,11 @@ pub struct DetectArgs {
     /// (from about 20 px), at four times stage 1's cost on the full-size image.
     #[arg(long)]
     pub upsample: bool,
-    /// Skip the searches that look at the image itself for the steep views the network's
-    /// grouping misses: stage 1's weaker corners joined where the image shows a quad's sides,
-    /// and quads traced around dark blobs the network's mask calls marker (together a few ms on
-    /// a typical image, about 30 ms on a cluttered photograph).
+    /// Skip the searches for the steep views the network's grouping misses: stage 1's weaker
+    /// corners joined where the image shows a quad's sides, quads traced around dark blobs the
+    /// network's mask calls marker, and the network's closer look (twice the size) around its
+    /// strong corners that no read accounts for (together a few ms on a typical image, about
+    /// 30 ms on a cluttered photograph).
     #[arg(long)]
     pub no_outline: bool,
     /// Read only through stage 2's network: no cell reads straight off the image for the ROIs
@@ -362,7 +363,7 @@ pub struct DetectSetArgs {
     /// With --full: stage 1 also on the image enlarged twice (as `detect --upsample`).
     #[arg(long)]
     pub upsample: bool,
-    /// With --full: no outlined or traced quads (as `detect --no-outline`).
+    /// With --full: no outlined or traced quads, no closer looks (as `detect --no-outline`).
     #[arg(long)]
     pub no_outline: bool,
     /// With --full: no cell reads (as `detect --no-cell-reads`).

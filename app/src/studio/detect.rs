@@ -62,8 +62,8 @@ pub struct DetectState {
     pub corner_threshold: f32,
     /// Stage 1 also on the image enlarged twice (markers down to about 10 px).
     pub upsample: bool,
-    /// The searches that look at the image itself for steep views: stage 1's weaker corners
-    /// joined where the image outlines a quad, and quads traced around dark blobs.
+    /// The searches for steep views: stage 1's weaker corners joined where the image outlines
+    /// a quad, quads traced around dark blobs, and the network's closer look at unread corners.
     pub outline: bool,
     pub image: Option<LoadedImage>,
     pub result: Option<DetectResult>,

@@ -238,6 +238,20 @@ impl Detector {
             &mut rounds,
             &mut timings,
         );
+        // Then the network's closer look at what its mask sees and no read accounts for.
+        let search_clock = Stopwatch::start();
+        let looked =
+            self.stage1
+                .close_look(&search, image, &rounds.covered(), &self.options.propose);
+        search_ms += search_clock.ms();
+        self.read_rounds(
+            image,
+            &looked,
+            Trust::Later,
+            camera,
+            &mut rounds,
+            &mut timings,
+        );
         // Last, the cells of the ROIs no network read, away from every marker read: after
         // every round, so that a cell read of a poor ROI never takes a marker's place from a
         // network read of a better one (dev seed 16 #6, 10 cm away: a cell read of a stage-1
@@ -634,6 +648,27 @@ mod tests {
         assert_eq!(Trust::First.allowed(5, 0.12), 3);
         assert_eq!(Trust::Traced.allowed(5, 0.9), 3);
         assert_eq!(Trust::Later.allowed(5, 0.9), 2);
+    }
+
+    /// The closer look is what reads a far sliver: without it nothing is found there.
+    #[test]
+    fn a_far_sliver_is_read_after_a_closer_look() {
+        use crate::detect::stage1::pipeline::{FAR_SLIVER, FAR_SLIVER_TRUTH};
+        let image = crate::image::decode(FAR_SLIVER, &Default::default()).unwrap();
+        let family = crate::builtin::get("apriltag-36h11").unwrap().unwrap();
+        let mut detector = Detector::shipped(vec![family]).unwrap();
+        let (found, _) = detector.detect_with(&image, None);
+        assert_eq!(found.len(), 1, "{found:?}");
+        assert_eq!(found[0].marker.id, 456);
+        let worst = (0..4)
+            .map(|i| {
+                let [x, y] = found[0].marker.corners[i];
+                (x - FAR_SLIVER_TRUTH[i][0]).hypot(y - FAR_SLIVER_TRUTH[i][1])
+            })
+            .fold(0.0, f64::max);
+        assert!(worst < 1.5, "corners {worst:.2} px off");
+        detector.options.propose.close_look = false;
+        assert!(detector.detect_with(&image, None).0.is_empty());
     }
 
     #[test]

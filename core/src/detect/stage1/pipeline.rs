@@ -47,6 +47,9 @@ pub struct ProposeOptions {
     pub outline: Option<OutlineOptions>,
     /// The search for quads traced around dark blobs ([`super::traced`]); `None` skips it.
     pub trace: Option<TraceOptions>,
+    /// The network again on the parts of the image where its mask sees a marker that no read
+    /// accounts for, enlarged twice ([`Stage1::close_look`]).
+    pub close_look: bool,
 }
 
 impl Default for ProposeOptions {
@@ -57,6 +60,7 @@ impl Default for ProposeOptions {
             upsample: false,
             outline: Some(OutlineOptions::default()),
             trace: Some(TraceOptions::default()),
+            close_look: true,
         }
     }
 }
@@ -65,13 +69,14 @@ impl ProposeOptions {
     /// Whether the searches that look at the image itself — outlined and traced quads, for the
     /// steep views the network's grouping misses — run.
     pub fn image_searches(&self) -> bool {
-        self.outline.is_some() || self.trace.is_some()
+        self.outline.is_some() || self.trace.is_some() || self.close_look
     }
 
     /// Turns both image searches on (with their default limits) or off.
     pub fn set_image_searches(&mut self, on: bool) {
         self.outline = on.then(OutlineOptions::default);
         self.trace = on.then(TraceOptions::default);
+        self.close_look = on;
     }
 }
 
@@ -112,7 +117,108 @@ impl Stage1 {
     pub fn search(&self, image: &GrayImage, options: &ProposeOptions) -> Search {
         search_with(&self.net, &self.device, image, options)
     }
+
+    /// The quads the network finds on a second, closer look (none when `options.close_look` is
+    /// off): around its strongest corners that none of the `covered` quads (markers read)
+    /// accounts for, boxes of the image are enlarged twice and run through the network again;
+    /// their quads come best first. A sliver 8–11 px across is too thin for corners 4 px apart on
+    /// the network's grid to group into a quad, or for its mask to fill one, but its corners
+    /// stand out; at twice the size both work, as `--upsample` shows on the whole image at four
+    /// times the cost (development sets: it read two such slivers of 260 Difficult markers).
+    /// At most [`CLOSE_LOOKS`] boxes, strongest corner first.
+    pub fn close_look(
+        &self,
+        search: &Search,
+        image: &GrayImage,
+        covered: &[[[f64; 2]; 4]],
+        options: &ProposeOptions,
+    ) -> Outlined {
+        if !options.close_look || options.upsample {
+            return Outlined(Vec::new());
+        }
+        let grown = grown(covered);
+        let r = CLOSE_LOOK_REACH;
+        // Every box the same size (moved inside the image at its borders), so that one batch
+        // runs the network on all of them.
+        let side = ((2.0 * r) as u32).min(image.width).min(image.height);
+        if side < 16 {
+            return Outlined(Vec::new());
+        }
+        // Top-left corners of the boxes.
+        let mut boxes: Vec<[u32; 2]> = Vec::new();
+        for corner in search.strong_corners(CLOSE_LOOK_CORNER) {
+            if boxes.len() == CLOSE_LOOKS {
+                break;
+            }
+            let [x, y] = corner.at;
+            let seen = boxes.iter().any(|&[x0, y0]| {
+                let (cx, cy) = (x0 as f64 + r, y0 as f64 + r);
+                (x - cx).abs() < r / 2.0 && (y - cy).abs() < r / 2.0
+            });
+            // A read marker's own corners lie on its outline, which for a sliver a fifth larger
+            // does not reach: those within a few pixels of it are its too.
+            let explained = |q: &[[f64; 2]; 4]| {
+                inside_polygon(q, corner.at)
+                    || (0..4).any(|i| distance_to_segment(corner.at, q[i], q[(i + 1) % 4]) < 4.0)
+            };
+            if seen || grown.iter().any(explained) {
+                continue;
+            }
+            let start =
+                |v: f64, n: u32| (v - r).round().clamp(0.0, n.saturating_sub(side) as f64) as u32;
+            boxes.push([start(x, image.width), start(y, image.height)]);
+        }
+        if boxes.is_empty() {
+            return Outlined(Vec::new());
+        }
+        let levels: Vec<GrayImage> = (boxes.iter())
+            .map(|&[x0, y0]| double(&image.crop(x0, y0, side, side)))
+            .collect();
+        let mut out: Vec<Candidate> = Vec::new();
+        for ([x0, y0], maps) in boxes
+            .into_iter()
+            .zip(maps_of(&self.net, &self.device, &levels))
+        {
+            let corners = maps.corners(options.group.corner, 0.5);
+            let mask = |p: [f64; 2]| maps.mask_at(p, 0.5);
+            // Corner indices stay unique across boxes, so that the selection takes each once.
+            let first = out
+                .iter()
+                .flat_map(|c| c.corners)
+                .max()
+                .map_or(0, |m| m + 1);
+            for mut c in candidates(&corners, &mask, &options.group) {
+                c.corners = c.corners.map(|i| i + first);
+                c.proposal.corners =
+                    (c.proposal.corners).map(|p| [p[0] + x0 as f64, p[1] + y0 as f64]);
+                out.push(c);
+            }
+        }
+        out.sort_by(|a, b| b.proposal.score.total_cmp(&a.proposal.score));
+        Outlined(out)
+    }
 }
+
+fn distance_to_segment(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
+    let (ab, ap) = ([b[0] - a[0], b[1] - a[1]], [p[0] - a[0], p[1] - a[1]]);
+    let length2 = ab[0] * ab[0] + ab[1] * ab[1];
+    let t = if length2 > 0.0 {
+        ((ap[0] * ab[0] + ap[1] * ab[1]) / length2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (ap[0] - t * ab[0]).hypot(ap[1] - t * ab[1])
+}
+
+/// The corner confidence that earns a closer look ([`Stage1::close_look`]).
+const CLOSE_LOOK_CORNER: f64 = 0.5;
+
+/// How far a closer look reaches from its corner, in pixels: far slivers are at most about 60 px
+/// long.
+const CLOSE_LOOK_REACH: f64 = 48.0;
+
+/// Closer looks per image at most: each runs the network on a 192² crop, about 2 ms.
+const CLOSE_LOOKS: usize = 6;
 
 /// Stage 1's quads on every level of one image. The first round of proposals is
 /// [`Stage1::propose`]'s; a quad that stage 2 cannot read may hold corners of real markers (a
@@ -195,28 +301,7 @@ impl Search {
             return Outlined(Vec::new());
         };
         let grown = grown(covered);
-        // Where the mask sees a marker that no read accounts for: every cell at or above the
-        // mask's threshold on any level, with the image pixels it covers.
-        let mut spots = Vec::new();
-        for (maps, scale) in &self.maps {
-            let half = 0.5 * STRIDE as f64 * scale;
-            let at = |c: usize| image_from_level((c as f64 + 0.5) * STRIDE as f64, *scale);
-            for (i, &m) in maps.mask.iter().enumerate() {
-                if (m as f64) < options.mask {
-                    continue;
-                }
-                let centre = [at(i % maps.columns), at(i / maps.columns)];
-                if grown.iter().any(|q| inside_polygon(q, centre)) {
-                    continue;
-                }
-                spots.push([
-                    centre[0] - half,
-                    centre[1] - half,
-                    centre[0] + half,
-                    centre[1] + half,
-                ]);
-            }
-        }
+        let spots = self.unexplained_spots(covered, options.mask);
         let mut out = Vec::new();
         for corners in traced_quads_near(image, &spots, options) {
             let centre = quad_centre(&corners);
@@ -238,6 +323,44 @@ impl Search {
             });
         }
         Outlined(out)
+    }
+
+    /// The corners of every level at or above `threshold`, strongest first.
+    fn strong_corners(&self, threshold: f64) -> Vec<Corner> {
+        let mut out: Vec<Corner> = Vec::new();
+        for (maps, scale) in &self.maps {
+            out.extend(maps.corners(threshold as f32, *scale));
+        }
+        out.sort_by(|a, b| b.score.total_cmp(&a.score));
+        out
+    }
+
+    /// Where the mask sees a marker that no read accounts for: every cell at or above
+    /// `threshold` on any level whose centre lies outside the `covered` quads (grown a fifth),
+    /// as the image pixels it covers (x0, y0, x1, y1).
+    fn unexplained_spots(&self, covered: &[[[f64; 2]; 4]], threshold: f64) -> Vec<[f64; 4]> {
+        let grown = grown(covered);
+        let mut spots = Vec::new();
+        for (maps, scale) in &self.maps {
+            let half = 0.5 * STRIDE as f64 * scale;
+            let at = |c: usize| image_from_level((c as f64 + 0.5) * STRIDE as f64, *scale);
+            for (i, &m) in maps.mask.iter().enumerate() {
+                if (m as f64) < threshold {
+                    continue;
+                }
+                let centre = [at(i % maps.columns), at(i / maps.columns)];
+                if grown.iter().any(|q| inside_polygon(q, centre)) {
+                    continue;
+                }
+                spots.push([
+                    centre[0] - half,
+                    centre[1] - half,
+                    centre[0] + half,
+                    centre[1] + half,
+                ]);
+            }
+        }
+        spots
     }
 
     /// How much of the quad the network's mask calls marker, at the level that says most.
@@ -434,10 +557,53 @@ pub fn maps_of(net: &Stage1Net, device: &Device, images: &[GrayImage]) -> Vec<Ma
     maps_from_raw(&raw, images.len(), pw / STRIDE, ph / STRIDE)
 }
 
+/// Development seed 11 #97 cut out (x 785–945, y 186–306 of a 1280×960 image): tag36h11 #456
+/// 100 cm away at 65°, 8 px across, with its ROI.
+#[cfg(test)]
+pub(crate) const FAR_SLIVER: &[u8] = include_bytes!("testdata/far-sliver-100cm-65deg.png");
+#[cfg(test)]
+pub(crate) const FAR_SLIVER_TRUTH: [[f64; 2]; 4] =
+    [[97.0, 51.4], [102.4, 58.4], [61.6, 68.8], [58.2, 61.4]];
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::detect::stage1::group::image_from_level;
+
+    /// A marker 100 cm away at 65°, 8 px across (development seed 11 #97, cut out): the network
+    /// finds three of its corners at full size but groups no quad near it, and the traced search
+    /// none either; its closer look at those corners gives one that the reads start from (the
+    /// detector's test reads it).
+    #[test]
+    fn a_closer_look_finds_the_quad_of_a_far_sliver() {
+        let image = crate::image::decode(FAR_SLIVER, &Default::default()).unwrap();
+        let stage1 = Stage1::shipped().unwrap();
+        let options = ProposeOptions::default();
+        let search = stage1.search(&image, &options);
+        let near_truth = |quads: &[Proposal]| {
+            quads.iter().any(|p| {
+                (0..4).any(|shift| {
+                    (0..4).all(|i| {
+                        let [x, y] = p.corners[(i + shift) % 4];
+                        (x - TRUTH[i][0]).hypot(y - TRUTH[i][1]) < 10.0
+                    })
+                })
+            })
+        };
+        const TRUTH: [[f64; 2]; 4] = FAR_SLIVER_TRUTH;
+        assert!(!near_truth(&search.proposals(&[], &[])));
+        assert!(!near_truth(&search.traced(&image, &[]).proposals(&[], &[])));
+        let looked = stage1.close_look(&search, &image, &[], &options);
+        assert!(near_truth(&looked.proposals(&[], &[])));
+        // Not when it is off, nor over a marker already read there.
+        let off = ProposeOptions {
+            close_look: false,
+            ..options
+        };
+        assert!(stage1.close_look(&search, &image, &[], &off).0.is_empty());
+        let read = stage1.close_look(&search, &image, &[TRUTH], &options);
+        assert!(!near_truth(&read.proposals(&[], &[])));
+    }
 
     /// A corner found on the doubled level has to land where it is in the image: a ramp doubled
     /// reads, at each level pixel, the image's value at that pixel's image coordinate.
