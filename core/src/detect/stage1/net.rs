@@ -11,7 +11,7 @@
 //! 640×480 at width 24). See [`macs`].
 
 use crate::detect::stage2::net::{
-    batch_norm_unless, fold_batch_norm, stem, trunk_blocks, SeparableBlock,
+    batch_norm_unless, fold_batch_norm, folded_blocks, stem, trunk_blocks, SeparableBlock,
 };
 use burn::module::Module;
 use burn::nn::conv::{Conv2d, Conv2dConfig};
@@ -74,11 +74,7 @@ impl Stage1Net {
     pub fn fold_batch_norms(mut self) -> Self {
         if !self.folded {
             fold_batch_norm(&mut self.stem, &self.stem_bn);
-            self.trunk = self
-                .trunk
-                .into_iter()
-                .map(SeparableBlock::fold_batch_norms)
-                .collect();
+            self.trunk = folded_blocks(self.trunk);
             self.head = self.head.fold_batch_norms();
             self.folded = true;
         }

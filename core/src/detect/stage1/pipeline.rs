@@ -47,8 +47,8 @@ pub struct ProposeOptions {
     pub outline: Option<OutlineOptions>,
     /// The search for quads traced around dark blobs ([`super::traced`]); `None` skips it.
     pub trace: Option<TraceOptions>,
-    /// The network again on the parts of the image where its mask sees a marker that no read
-    /// accounts for, enlarged twice ([`Stage1::close_look`]).
+    /// The network again on the image enlarged twice, around its strong corners that no read
+    /// accounts for ([`Stage1::close_look`]).
     pub close_look: bool,
 }
 
@@ -66,13 +66,13 @@ impl Default for ProposeOptions {
 }
 
 impl ProposeOptions {
-    /// Whether the searches that look at the image itself — outlined and traced quads, for the
-    /// steep views the network's grouping misses — run.
+    /// Whether the searches for the views the network's grouping misses — outlined and traced
+    /// quads, closer looks — run.
     pub fn image_searches(&self) -> bool {
         self.outline.is_some() || self.trace.is_some() || self.close_look
     }
 
-    /// Turns both image searches on (with their default limits) or off.
+    /// Turns those searches on (with their default limits) or off.
     pub fn set_image_searches(&mut self, on: bool) {
         self.outline = on.then(OutlineOptions::default);
         self.trace = on.then(TraceOptions::default);
@@ -155,8 +155,8 @@ impl Stage1 {
                 let (cx, cy) = (x0 as f64 + r, y0 as f64 + r);
                 (x - cx).abs() < r / 2.0 && (y - cy).abs() < r / 2.0
             });
-            // A read marker's own corners lie on its outline, which for a sliver a fifth larger
-            // does not reach: those within a few pixels of it are its too.
+            // A read marker's own corners lie on its outline, outside a sliver's quad even grown
+            // by a fifth: those within a few pixels of it are its too.
             let explained = |q: &[[f64; 2]; 4]| {
                 inside_polygon(q, corner.at)
                     || (0..4).any(|i| distance_to_segment(corner.at, q[i], q[(i + 1) % 4]) < 4.0)

@@ -156,6 +156,13 @@ impl SeparableBlock {
     }
 }
 
+pub(crate) fn folded_blocks(blocks: Vec<SeparableBlock>) -> Vec<SeparableBlock> {
+    blocks
+        .into_iter()
+        .map(SeparableBlock::fold_batch_norms)
+        .collect()
+}
+
 pub(crate) fn batch_norm_unless(folded: bool, bn: &BatchNorm, x: Tensor<4>) -> Tensor<4> {
     if folded {
         x
@@ -242,15 +249,9 @@ impl Stage2Net {
     pub fn fold_batch_norms(mut self) -> Self {
         if !self.folded {
             fold_batch_norm(&mut self.stem, &self.stem_bn);
-            self.trunk = self
-                .trunk
-                .into_iter()
-                .map(SeparableBlock::fold_batch_norms)
-                .collect();
+            self.trunk = folded_blocks(self.trunk);
             self.keypoint = self.keypoint.fold_batch_norms();
-            self.template = (self.template.into_iter())
-                .map(SeparableBlock::fold_batch_norms)
-                .collect();
+            self.template = folded_blocks(self.template);
             self.folded = true;
         }
         self
