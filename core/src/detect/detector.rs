@@ -238,7 +238,8 @@ impl Detector {
             &mut rounds,
             &mut timings,
         );
-        // Then the network's closer look at what its mask sees and no read accounts for.
+        // Then the network's closer look, on the image doubled, around its strong corners that no
+        // read accounts for (far slivers).
         let search_clock = Stopwatch::start();
         let looked =
             self.stage1

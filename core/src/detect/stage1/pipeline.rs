@@ -119,7 +119,7 @@ impl Stage1 {
     }
 
     /// The quads the network finds on a second, closer look (none when `options.close_look` is
-    /// off): around its strongest corners that none of the `covered` quads (markers read)
+    /// off, or when `options.upsample` already ran it on the whole image doubled): around its strongest corners that none of the `covered` quads (markers read)
     /// accounts for, boxes of the image are enlarged twice and run through the network again;
     /// their quads come best first. A sliver 8–11 px across is too thin for corners 4 px apart on
     /// the network's grid to group into a quad, or for its mask to fill one, but its corners

@@ -138,11 +138,15 @@ impl SeparableBlock {
     }
 
     pub(crate) fn forward(&self, x: Tensor<4>) -> Tensor<4> {
-        let x = batch_norm_unless(self.folded, &self.bn1, self.depthwise.forward(x));
+        let x = relu(batch_norm_unless(
+            self.folded,
+            &self.bn1,
+            self.depthwise.forward(x),
+        ));
         relu(batch_norm_unless(
             self.folded,
             &self.bn2,
-            self.pointwise.forward(relu(x)),
+            self.pointwise.forward(x),
         ))
     }
 
