@@ -253,13 +253,14 @@ impl Detector {
             &mut rounds,
             &mut timings,
         );
-        // Last, the cells of the ROIs no network read, away from every marker read: after
-        // every round, so that a cell read of a poor ROI never takes a marker's place from a
-        // network read of a better one (dev seed 16 #6, 10 cm away: a cell read of a stage-1
-        // ROI with its corners 80 px off covered the ROI stage 2 read right a round later).
+        // Last, the cells of the ROIs no network read (and of the image searches' quads left
+        // unread), away from every marker read: after every round, so that a cell read of a
+        // poor ROI never takes a marker's place from a network read of a better one (dev seed
+        // 16 #6, 10 cm away: a cell read of a stage-1 ROI with its corners 80 px off covered
+        // the ROI stage 2 read right a round later).
         if self.options.cell_reads {
             let mut left: Vec<Proposal> = Vec::new();
-            for p in &rounds.failed {
+            for p in rounds.failed.iter().chain(&rounds.unread) {
                 let covered = rounds
                     .found
                     .iter()
@@ -294,7 +295,8 @@ impl Detector {
     }
 
     /// Up to [`IMAGE_SEARCH_ROUNDS`] selections of the quads an image search found, at most
-    /// [`MAX_IMAGE_SEARCH_READS`] new ones each, none over a marker already read.
+    /// [`MAX_IMAGE_SEARCH_READS`] new ones each, none over a marker already read; the quads left
+    /// over are filed for cell reads.
     fn read_rounds(
         &self,
         image: &GrayImage,
@@ -305,16 +307,9 @@ impl Detector {
         timings: &mut Timings,
     ) {
         for _ in 0..IMAGE_SEARCH_ROUNDS {
-            let batch: Vec<Proposal> = quads
-                .proposals(&rounds.kept(), &rounds.failed)
+            let batch: Vec<Proposal> = rounds
+                .fresh(quads)
                 .into_iter()
-                .filter(|p| {
-                    rounds.is_new(p)
-                        && !rounds
-                            .found
-                            .iter()
-                            .any(|f| nested(&f.marker.corners, &p.corners))
-                })
                 .take(MAX_IMAGE_SEARCH_READS)
                 .collect();
             if batch.is_empty() {
@@ -323,6 +318,10 @@ impl Detector {
             let reads = self.read_all(image, &batch, camera, trust, timings);
             rounds.record(batch, reads);
         }
+        // A cluttered image traces dozens of quads, largest first, and a far sliver comes
+        // last: past the network's reads, it still gets a cell read.
+        let unread = rounds.fresh(quads);
+        rounds.unread.extend(unread);
     }
 
     /// Stage 2 of every family on every proposal: for each, the family that reads it, if any,
@@ -536,6 +535,8 @@ struct Rounds {
     read: Vec<Proposal>,
     failed: Vec<Proposal>,
     found: Vec<Found>,
+    /// Image-search quads left over when the rounds' reads ran out: cell reads only.
+    unread: Vec<Proposal>,
 }
 
 impl Rounds {
@@ -547,6 +548,22 @@ impl Rounds {
     /// The ROIs read as markers: their corners are spoken for in the next selection.
     fn kept(&self) -> Vec<Proposal> {
         self.found.iter().map(|f| f.proposal).collect()
+    }
+
+    /// The quads an image search found that are not sent to stage 2 yet nor over a marker read,
+    /// selected as [`Outlined::proposals`] does.
+    fn fresh(&self, quads: &Outlined) -> Vec<Proposal> {
+        quads
+            .proposals(&self.kept(), &self.failed)
+            .into_iter()
+            .filter(|p| {
+                self.is_new(p)
+                    && !self
+                        .found
+                        .iter()
+                        .any(|f| nested(&f.marker.corners, &p.corners))
+            })
+            .collect()
     }
 
     fn is_new(&self, p: &Proposal) -> bool {
@@ -669,6 +686,39 @@ mod tests {
             .fold(0.0, f64::max);
         assert!(worst < 1.5, "corners {worst:.2} px off");
         detector.options.propose.close_look = false;
+        assert!(detector.detect_with(&image, None).0.is_empty());
+    }
+
+    /// A cluttered scene (`tagsmith eval generate apriltag-36h11 --seed 16`, image 96, cut at x
+    /// 0–640, y 150–630) with a marker 100 cm away at 60°, 10 px across (ID 483): its dark
+    /// blobs trace more quads than the network reads, largest first, and the marker's comes
+    /// after them.
+    const CLUTTERED: &[u8] = include_bytes!("testdata/cluttered-100cm-60deg.png");
+    const CLUTTERED_TRUTH: [[f64; 2]; 4] = [
+        [317.47, 317.16],
+        [306.80, 317.55],
+        [281.22, 287.25],
+        [291.01, 285.51],
+    ];
+
+    /// The traced quads the network's reads do not reach still get cell reads.
+    #[test]
+    fn a_sliver_traced_past_the_networks_reads_is_read_by_its_cells() {
+        let image = crate::image::decode(CLUTTERED, &Default::default()).unwrap();
+        let family = crate::builtin::get("apriltag-36h11").unwrap().unwrap();
+        let mut detector = Detector::shipped(vec![family]).unwrap();
+        let (found, _) = detector.detect_with(&image, None);
+        assert_eq!(found.len(), 1, "{found:?}");
+        assert!(found[0].cell_read);
+        assert_eq!(found[0].marker.id, 483);
+        let worst = (0..4)
+            .map(|i| {
+                let [x, y] = found[0].marker.corners[i];
+                (x - CLUTTERED_TRUTH[i][0]).hypot(y - CLUTTERED_TRUTH[i][1])
+            })
+            .fold(0.0, f64::max);
+        assert!(worst < 1.5, "corners {worst:.2} px off");
+        detector.options.cell_reads = false;
         assert!(detector.detect_with(&image, None).0.is_empty());
     }
 
