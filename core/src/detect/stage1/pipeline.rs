@@ -301,7 +301,7 @@ impl Search {
             return Outlined(Vec::new());
         };
         let grown = grown(covered);
-        let spots = self.unexplained_spots(covered, options.mask);
+        let spots = self.unexplained_spots(covered, options);
         let mut out = Vec::new();
         for corners in traced_quads_near(image, &spots, options) {
             let centre = quad_centre(&corners);
@@ -335,29 +335,31 @@ impl Search {
         out
     }
 
-    /// Where the mask sees a marker that no read accounts for: every cell at or above
-    /// `threshold` on any level whose centre lies outside the `covered` quads (grown a fifth),
-    /// as the image pixels it covers (x0, y0, x1, y1).
-    fn unexplained_spots(&self, covered: &[[[f64; 2]; 4]], threshold: f64) -> Vec<[f64; 4]> {
+    /// Where the network sees a marker that no read accounts for: every mask cell at or above
+    /// `options.mask` and every corner at or above `options.corner`, on any level, outside the
+    /// `covered` quads (grown a fifth), as the image pixels they cover (x0, y0, x1, y1).
+    fn unexplained_spots(
+        &self,
+        covered: &[[[f64; 2]; 4]],
+        options: &TraceOptions,
+    ) -> Vec<[f64; 4]> {
         let grown = grown(covered);
+        let unexplained = |p: [f64; 2]| !grown.iter().any(|q| inside_polygon(q, p));
         let mut spots = Vec::new();
         for (maps, scale) in &self.maps {
             let half = 0.5 * STRIDE as f64 * scale;
+            let spot = |[x, y]: [f64; 2]| [x - half, y - half, x + half, y + half];
             let at = |c: usize| image_from_level((c as f64 + 0.5) * STRIDE as f64, *scale);
             for (i, &m) in maps.mask.iter().enumerate() {
-                if (m as f64) < threshold {
-                    continue;
-                }
                 let centre = [at(i % maps.columns), at(i / maps.columns)];
-                if grown.iter().any(|q| inside_polygon(q, centre)) {
-                    continue;
+                if m as f64 >= options.mask && unexplained(centre) {
+                    spots.push(spot(centre));
                 }
-                spots.push([
-                    centre[0] - half,
-                    centre[1] - half,
-                    centre[0] + half,
-                    centre[1] + half,
-                ]);
+            }
+            for corner in maps.corners(options.corner as f32, *scale) {
+                if unexplained(corner.at) {
+                    spots.push(spot(corner.at));
+                }
             }
         }
         spots
@@ -603,6 +605,45 @@ mod tests {
         assert!(stage1.close_look(&search, &image, &[], &off).0.is_empty());
         let read = stage1.close_look(&search, &image, &[TRUTH], &options);
         assert!(!near_truth(&read.proposals(&[], &[])));
+    }
+
+    /// A marker 80 cm away at 70°, turned about its diagonal: a rhombus 33 px a side and 8 px
+    /// across (development seed 16 #78, cut at x 416–544, y 246–374). Its blob, blurred at the
+    /// tips, fills under 85 % of its hull.
+    const TURNED_SLIVER: &[u8] = include_bytes!("testdata/turned-sliver-80cm-70deg.png");
+    const TURNED_SLIVER_TRUTH: [[f64; 2]; 4] = [
+        [52.60, 57.38],
+        [50.85, 89.35],
+        [43.67, 55.00],
+        [44.97, 22.02],
+    ];
+
+    #[test]
+    fn a_sliver_blunted_at_its_tips_is_traced() {
+        let image = crate::image::decode(TURNED_SLIVER, &Default::default()).unwrap();
+        let stage1 = Stage1::shipped().unwrap();
+        let near_truth = |options: &ProposeOptions| {
+            let search = stage1.search(&image, options);
+            let traced = search.traced(&image, &[]).proposals(&[], &[]);
+            traced.iter().any(|p| {
+                (0..4).any(|shift| {
+                    (0..4).all(|i| {
+                        let [x, y] = p.corners[(i + shift) % 4];
+                        let [tx, ty] = TURNED_SLIVER_TRUTH[i];
+                        (x - tx).hypot(y - ty) < 4.0
+                    })
+                })
+            })
+        };
+        assert!(near_truth(&ProposeOptions::default()));
+        let strict = ProposeOptions {
+            trace: Some(TraceOptions {
+                fit: 0.85,
+                ..TraceOptions::default()
+            }),
+            ..ProposeOptions::default()
+        };
+        assert!(!near_truth(&strict));
     }
 
     /// A corner found on the doubled level has to land where it is in the image: a ramp doubled

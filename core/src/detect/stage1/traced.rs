@@ -35,12 +35,17 @@ pub struct TraceOptions {
     /// The smallest quad, in square pixels.
     pub min_area: f64,
     /// The least share of the blob's convex hull its quad covers: a quadrilateral blob is
-    /// covered almost whole, a disc by 64 %, a triangle by at most 75 %.
+    /// covered almost whole, a disc by 64 %, a triangle by at most 75 %. A sliver's blob,
+    /// blurred at its tips, is covered by 0.75–0.85 (dev seed 12 #78, a rhombus 10 px across),
+    /// so triangles of clutter pass too: the reads reject them.
     pub fit: f64,
     /// The mask's value that marks a spot to trace around. Below one half: a sliver a few
     /// pixels across 60–90 cm away lights the mask to 0.3–0.5 only (development sets 10–13:
     /// three of 260 Difficult markers had no spot at 0.5, and are read from one at 0.3).
     pub mask: f64,
+    /// The stage-1 corner score that marks a spot as well: some slivers light no mask cell
+    /// at all while the network still finds their corners (dev seeds 12 #78, 16 #78, 19 #76).
+    pub corner: f64,
     /// The least mean of the network's marker mask inside a quad, at the level where it is
     /// highest: dark rectangles of clutter trace as well as markers do. Low, because the quad
     /// is only traced near a spot already: a marker seen steep from 10 cm is long, and the
@@ -56,8 +61,9 @@ impl Default for TraceOptions {
             offsets: [0.1, 0.3],
             min_side: 4.0,
             min_area: 150.0,
-            fit: 0.85,
+            fit: 0.7,
             mask: 0.3,
+            corner: 0.3,
             support: 0.1,
         }
     }
