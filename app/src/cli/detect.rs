@@ -68,14 +68,16 @@ pub struct DetectArgs {
     #[arg(long)]
     pub upsample: bool,
     /// Skip the searches for the steep views the network's grouping misses: stage 1's weaker
-    /// corners joined where the image shows a quad's sides, quads traced around dark blobs the
-    /// network's mask calls marker, and the network's closer look (twice the size) around its
+    /// corners joined where the image shows a quad's sides, quads traced around dark blobs where
+    /// the network sees a marker (its mask or its corners), and the network's closer look (twice
+    /// the size) around its
     /// strong corners that no read accounts for (together a few ms on a typical image, about
     /// 30 ms on a cluttered photograph).
     #[arg(long)]
     pub no_outline: bool,
     /// Read only through stage 2's network: no cell reads straight off the image for the ROIs
-    /// it reads nothing from (black-and-white grid families).
+    /// it reads nothing from, nor for the traced quads past its reads (black-and-white grid
+    /// families).
     #[arg(long)]
     pub no_cell_reads: bool,
     /// Write the detections file (the harness's format, for `tagsmith eval score`).

@@ -668,6 +668,16 @@ mod tests {
         assert_eq!(Trust::Later.allowed(5, 0.9), 2);
     }
 
+    fn assert_corners_within(found: &Found, truth: &[[f64; 2]; 4], px: f64) {
+        let worst = (0..4)
+            .map(|i| {
+                let [x, y] = found.marker.corners[i];
+                (x - truth[i][0]).hypot(y - truth[i][1])
+            })
+            .fold(0.0, f64::max);
+        assert!(worst < px, "corners {worst:.2} px off");
+    }
+
     /// The closer look is what reads a far sliver: without it nothing is found there.
     #[test]
     fn a_far_sliver_is_read_after_a_closer_look() {
@@ -678,13 +688,7 @@ mod tests {
         let (found, _) = detector.detect_with(&image, None);
         assert_eq!(found.len(), 1, "{found:?}");
         assert_eq!(found[0].marker.id, 456);
-        let worst = (0..4)
-            .map(|i| {
-                let [x, y] = found[0].marker.corners[i];
-                (x - FAR_SLIVER_TRUTH[i][0]).hypot(y - FAR_SLIVER_TRUTH[i][1])
-            })
-            .fold(0.0, f64::max);
-        assert!(worst < 1.5, "corners {worst:.2} px off");
+        assert_corners_within(&found[0], &FAR_SLIVER_TRUTH, 1.5);
         detector.options.propose.close_look = false;
         assert!(detector.detect_with(&image, None).0.is_empty());
     }
@@ -711,13 +715,7 @@ mod tests {
         assert_eq!(found.len(), 1, "{found:?}");
         assert!(found[0].cell_read);
         assert_eq!(found[0].marker.id, 483);
-        let worst = (0..4)
-            .map(|i| {
-                let [x, y] = found[0].marker.corners[i];
-                (x - CLUTTERED_TRUTH[i][0]).hypot(y - CLUTTERED_TRUTH[i][1])
-            })
-            .fold(0.0, f64::max);
-        assert!(worst < 1.5, "corners {worst:.2} px off");
+        assert_corners_within(&found[0], &CLUTTERED_TRUTH, 1.5);
         detector.options.cell_reads = false;
         assert!(detector.detect_with(&image, None).0.is_empty());
     }

@@ -413,21 +413,27 @@ pub fn nested(a: &[[f64; 2]; 4], b: &[[f64; 2]; 4]) -> bool {
 }
 
 /// Whether two proposals mark the same quad: every corner within a fifth of the thinner quad's
-/// width ([`width`]) of the other's, from any starting corner.
+/// width ([`width`]) of the other's, and within [`MAX_SAME_OFFSET`], from any starting corner.
 pub fn same_quad(a: &Proposal, b: &Proposal) -> bool {
     same_corners(&a.corners, &b.corners)
 }
 
 /// [`same_quad`] for bare corners.
 pub fn same_corners(a: &[[f64; 2]; 4], b: &[[f64; 2]; 4]) -> bool {
-    let side = width(a).min(width(b));
+    let tolerance = (0.2 * width(a).min(width(b))).min(MAX_SAME_OFFSET);
     (0..4).any(|shift| {
         (0..4).all(|i| {
             let d = sub(a[(i + shift) % 4], b[i]);
-            d[0].hypot(d[1]) < 0.2 * side
+            d[0].hypot(d[1]) < tolerance
         })
     })
 }
+
+/// The farthest apart, in pixels, two quads' corners may be and still mark the same quad,
+/// however large: a close marker 270 px across had a stage-1 quad 43 px off that stage 2 could
+/// not read, and its traced quad, 0.3 px off and read with 0 corrections, counted as "the
+/// same" within a fifth of the width and was never read (dev seed 21 #8, 10 cm at 70°).
+const MAX_SAME_OFFSET: f64 = 8.0;
 
 /// No side under 15 % of the longest: flatter quads are slivers of clutter, not markers.
 fn sides_balanced(q: &[[f64; 2]; 4]) -> bool {
@@ -585,6 +591,28 @@ mod tests {
         // From another corner, still the same.
         let turned = [sliver[2], sliver[3], sliver[0], sliver[1]];
         assert!(same_quad(&p(sliver), &p(turned)));
+    }
+
+    #[test]
+    fn a_large_quad_is_the_same_only_within_a_few_pixels() {
+        // A close marker about 270 px across.
+        let close = [
+            [686.0, 588.0],
+            [889.0, 382.0],
+            [1073.0, 606.0],
+            [726.0, 860.0],
+        ];
+        let p = |corners| Proposal {
+            corners,
+            score: 1.0,
+        };
+        let nudged = close.map(|[x, y]| [x + 3.0, y - 3.0]);
+        assert!(same_quad(&p(close), &p(nudged)));
+        // Stage 1's quad of it 43 px off at one corner is another quad, though well within a
+        // fifth of its width.
+        let mut off = close;
+        off[0] = [695.0, 630.0];
+        assert!(!same_quad(&p(close), &p(off)));
     }
 
     #[test]
