@@ -261,11 +261,7 @@ impl Detector {
         if self.options.cell_reads {
             let mut left: Vec<Proposal> = Vec::new();
             for p in rounds.failed.iter().chain(&rounds.unread) {
-                let covered = rounds
-                    .found
-                    .iter()
-                    .any(|f| nested(&f.marker.corners, &p.corners));
-                if !covered && !left.iter().any(|q| same_quad(q, p)) {
+                if !rounds.over_a_marker_read(p) && !left.iter().any(|q| same_quad(q, p)) {
                     left.push(*p);
                 }
             }
@@ -556,14 +552,14 @@ impl Rounds {
         quads
             .proposals(&self.kept(), &self.failed)
             .into_iter()
-            .filter(|p| {
-                self.is_new(p)
-                    && !self
-                        .found
-                        .iter()
-                        .any(|f| nested(&f.marker.corners, &p.corners))
-            })
+            .filter(|p| self.is_new(p) && !self.over_a_marker_read(p))
             .collect()
+    }
+
+    fn over_a_marker_read(&self, p: &Proposal) -> bool {
+        self.found
+            .iter()
+            .any(|f| nested(&f.marker.corners, &p.corners))
     }
 
     fn is_new(&self, p: &Proposal) -> bool {

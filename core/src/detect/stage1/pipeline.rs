@@ -119,9 +119,10 @@ impl Stage1 {
     }
 
     /// The quads the network finds on a second, closer look (none when `options.close_look` is
-    /// off, or when `options.upsample` already ran it on the whole image doubled): around its strongest corners that none of the `covered` quads (markers read)
-    /// accounts for, boxes of the image are enlarged twice and run through the network again;
-    /// their quads come best first. A sliver 8–11 px across is too thin for corners 4 px apart on
+    /// off, or when `options.upsample` already ran it on the whole image doubled): around its
+    /// strongest corners that none of the `covered` quads (markers read) accounts for, boxes of
+    /// the image are enlarged twice and run through the network again; their quads come best
+    /// first. A sliver 8–11 px across is too thin for corners 4 px apart on
     /// the network's grid to group into a quad, or for its mask to fill one, but its corners
     /// stand out; at twice the size both work, as `--upsample` shows on the whole image at four
     /// times the cost (development sets: it read two such slivers of 260 Difficult markers).
@@ -572,6 +573,18 @@ mod tests {
     use super::*;
     use crate::detect::stage1::group::image_from_level;
 
+    /// Whether some quad has every corner within `px` of `truth`'s, from any starting corner.
+    fn any_near(quads: &[Proposal], truth: &[[f64; 2]; 4], px: f64) -> bool {
+        quads.iter().any(|p| {
+            (0..4).any(|shift| {
+                (0..4).all(|i| {
+                    let [x, y] = p.corners[(i + shift) % 4];
+                    (x - truth[i][0]).hypot(y - truth[i][1]) < px
+                })
+            })
+        })
+    }
+
     /// A marker 100 cm away at 65°, 8 px across (development seed 11 #97, cut out): the network
     /// finds three of its corners at full size but groups no quad near it, and the traced search
     /// none either; its closer look at those corners gives one that the reads start from (the
@@ -582,17 +595,7 @@ mod tests {
         let stage1 = Stage1::shipped().unwrap();
         let options = ProposeOptions::default();
         let search = stage1.search(&image, &options);
-        let near_truth = |quads: &[Proposal]| {
-            quads.iter().any(|p| {
-                (0..4).any(|shift| {
-                    (0..4).all(|i| {
-                        let [x, y] = p.corners[(i + shift) % 4];
-                        (x - TRUTH[i][0]).hypot(y - TRUTH[i][1]) < 10.0
-                    })
-                })
-            })
-        };
-        const TRUTH: [[f64; 2]; 4] = FAR_SLIVER_TRUTH;
+        let near_truth = |quads: &[Proposal]| any_near(quads, &FAR_SLIVER_TRUTH, 10.0);
         assert!(!near_truth(&search.proposals(&[], &[])));
         assert!(!near_truth(&search.traced(&image, &[]).proposals(&[], &[])));
         let looked = stage1.close_look(&search, &image, &[], &options);
@@ -603,7 +606,7 @@ mod tests {
             ..options
         };
         assert!(stage1.close_look(&search, &image, &[], &off).0.is_empty());
-        let read = stage1.close_look(&search, &image, &[TRUTH], &options);
+        let read = stage1.close_look(&search, &image, &[FAR_SLIVER_TRUTH], &options);
         assert!(!near_truth(&read.proposals(&[], &[])));
     }
 
@@ -625,15 +628,7 @@ mod tests {
         let near_truth = |options: &ProposeOptions| {
             let search = stage1.search(&image, options);
             let traced = search.traced(&image, &[]).proposals(&[], &[]);
-            traced.iter().any(|p| {
-                (0..4).any(|shift| {
-                    (0..4).all(|i| {
-                        let [x, y] = p.corners[(i + shift) % 4];
-                        let [tx, ty] = TURNED_SLIVER_TRUTH[i];
-                        (x - tx).hypot(y - ty) < 4.0
-                    })
-                })
-            })
+            any_near(&traced, &TURNED_SLIVER_TRUTH, 4.0)
         };
         assert!(near_truth(&ProposeOptions::default()));
         let strict = ProposeOptions {
