@@ -74,12 +74,18 @@ impl Default for TraceOptions {
 const MIN_OFFSET: f32 = 4.0;
 
 /// The most one side of a quad may exceed its opposite side, as a ratio. Opposite sides of a
-/// square in perspective differ as the depths of their ends do: a 5 cm marker 10 cm away at 75°
-/// on the optical axis reaches 1.6, but off the axis, towards the image's edge, the near side
-/// comes closer still — the 6710 markers of the development sets reach 3.9 (10 cm at 60°), five
-/// of them beyond 2.5 (which dropped dev ArUco seed 20 #7, 2.8). Beyond 4.5 a quad is no square a
-/// camera sees.
-const MAX_OPPOSITE_RATIO: f64 = 4.5;
+/// square in perspective differ as the depths of their ends do, so only a marker close to the
+/// camera, large in the image, shows a large ratio: a 5 cm marker 10 cm away at 75° on the
+/// optical axis reaches 1.6, and off the axis, towards the image's edge, the near side comes
+/// closer still — the 6710 markers of the development sets reach 3.9 (10 cm at 60°, 527 px
+/// long), five beyond 2.5 (which dropped dev ArUco seed 20 #7, 2.8), none beyond 1.9 under
+/// 380 px (at a focal length of 695 px). So a quad may reach 4.5 only where its longest side
+/// spans [`CLOSE_LENGTH`] px — a lens of half that focal length included — and 2.5 elsewhere:
+/// a far sliver's blob joined to its neighbours at the lenient offset traces a skewed quad (4.0
+/// on dev seed 16 #78) over the sliver's own, and the larger of two nested quads is read first.
+const MAX_OPPOSITE_RATIO: f64 = 2.5;
+const MAX_OPPOSITE_RATIO_CLOSE: f64 = 4.5;
+const CLOSE_LENGTH: f64 = 150.0;
 
 /// How many times a region is traced again, grown, when a blob over its middle runs out of it.
 /// Each growth adds the region's size on each side the blob leaves by: a spot covers only the
@@ -354,8 +360,8 @@ fn traced_quads(image: &GrayImage, offset: f32, options: &TraceOptions) -> Trace
             (area >= options.min_area
                 && area >= options.fit * hull_area
                 && short >= options.min_side
-                && opposite_sides_ratio(&quad) <= MAX_OPPOSITE_RATIO)
-                .then_some((quad, area))
+                && seen_by_a_camera(&quad))
+            .then_some((quad, area))
         })
         .collect();
     quads.sort_by(|a, b| b.1.total_cmp(&a.1));
@@ -483,6 +489,20 @@ fn blobs(runs: &[Run]) -> Vec<usize> {
             label[r]
         })
         .collect()
+}
+
+/// Whether a square seen by a camera can have `quad`'s opposite sides (see
+/// [`MAX_OPPOSITE_RATIO`]).
+fn seen_by_a_camera(quad: &[[f64; 2]; 4]) -> bool {
+    let longest = (0..4)
+        .map(|i| distance(quad[i], quad[(i + 1) % 4]))
+        .fold(0.0, f64::max);
+    let bound = if longest >= CLOSE_LENGTH {
+        MAX_OPPOSITE_RATIO_CLOSE
+    } else {
+        MAX_OPPOSITE_RATIO
+    };
+    opposite_sides_ratio(quad) <= bound
 }
 
 /// The larger of the two ratios longer / shorter between opposite sides.
@@ -801,15 +821,20 @@ mod tests {
                 .quads
                 .is_empty()
         );
-        // A trapezoid whose parallel sides differ eightfold is no square a camera sees.
+        // A trapezoid whose parallel sides differ threefold is no square a camera sees this
+        // small.
         let wedge = draw(
-            &[[[20.0, 40.0], [120.0, 40.0], [76.0, 80.0], [64.0, 80.0]]],
+            &[[[20.0, 40.0], [110.0, 40.0], [80.0, 80.0], [50.0, 80.0]]],
             210,
             30,
         );
         assert!(traced_quads(&wedge, 20.0, &TraceOptions::default())
             .quads
             .is_empty());
+        // Close up, 180 px long, it may be one (a marker 10 cm away near the image's edge).
+        let close = [[10.0, 40.0], [190.0, 40.0], [130.0, 80.0], [70.0, 80.0]];
+        let quads = traced_quads(&draw(&[close], 210, 30), 20.0, &TraceOptions::default()).quads;
+        assert!(quads.iter().any(|q| matches(q, &close, 2.0)), "{quads:?}");
         // A dark blob the image's border cuts is not traced.
         let cut = draw(
             &[[[-10.0, 40.0], [60.0, 40.0], [60.0, 90.0], [-10.0, 90.0]]],
