@@ -21,6 +21,16 @@ use rand_chacha::ChaCha8Rng;
 /// shows it (BENCHMARKS.md, "Now: stage 2 trained on steep camera views, and stricter reads").
 pub const DEFAULT_CAMERA_SHARE: f64 = 0.3;
 
+/// How far away a camera cut's marker stands. Far steep slivers (35–60 px long, 9–16 px wide)
+/// read from true ROIs with 0 corrections but missed or needed 3–5 once their corners moved by
+/// 2–4 % of the side (`detect-set --roi-noise`), and the first camera cuts (10–60 cm) drew few of
+/// them (BENCHMARKS.md, "Now: stage 2 fine-tuned on far steep cuts …").
+const CUT_DISTANCE_M: [f64; 2] = [0.1, 0.8];
+
+/// The scale of a camera cut's ROI error (pixels; the error is about normal with a standard
+/// deviation drawn up to this).
+const CUT_ROI_ERROR_PX: f64 = 2.0;
+
 /// One training patch with its targets.
 pub struct PatchSample {
     pub image: GrayImage,
@@ -94,10 +104,11 @@ fn patch_mode(
     Ok((sample.image, truth))
 }
 
-/// A patch cut from a 640×480 camera view (98° diagonal) of one marker 3–10 cm wide, 10–60 cm
-/// away (the harness camera's 20–120 cm at 1280×960) and turned 40–80° away, as the detector cuts
-/// it: the ROI (off by up to a pixel, as stage 1's and the traced quads' are) warped onto the
-/// patch's template corners. `None` when the marker does not lie whole in the view.
+/// A patch cut from a 640×480 camera view (98° diagonal) of one marker 3–10 cm wide, 10–80 cm
+/// away (the harness camera's 20–160 cm at 1280×960: down to 13 px across) and turned 40–80° away,
+/// as the detector cuts it: the ROI (off by a random error of up to about two pixels, as stage 1's,
+/// the traced quads' and the frame fit's are on a sliver) warped onto the patch's template corners.
+/// `None` when the marker does not lie whole in the view.
 fn camera_cut(
     family: &Family,
     spec: &PatchSpec,
@@ -107,7 +118,7 @@ fn camera_cut(
     config.width = 640;
     config.height = 480;
     config.markers = [1, 1];
-    config.distance_m = [0.1, 0.6];
+    config.distance_m = CUT_DISTANCE_M;
     config.view_angle_deg = [40.0, 80.0];
     let sample = synthesize(family, &config, seed).map_err(|e| e.to_string())?;
     let Some(truth) = sample.truth.markers.into_iter().next() else {
@@ -119,7 +130,7 @@ fn camera_cut(
         return Ok(None);
     }
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5EED_0FC0);
-    let sigma = rng.random_range(0.0..1.0);
+    let sigma = rng.random_range(0.0..CUT_ROI_ERROR_PX);
     let roi: [[f64; 2]; 4] = std::array::from_fn(|i| {
         let [x, y] = truth.roi[i];
         // A sum of uniforms is close enough to a normal error here.
@@ -225,9 +236,10 @@ mod tests {
         let spec = PatchSpec::default();
         let cuts = samples(1.0);
         let near = cuts.iter().filter(|s| off_template(s, &spec) < 6.0).count();
-        // A view that does not fit the image falls back to patch mode.
+        // A view that does not fit the image falls back to patch mode, and a sliver's ROI error
+        // of a pixel or two across its width is ten times that on the patch.
         assert!(
-            near >= 12,
+            near >= 9,
             "{near} of 16 camera cuts on the template corners"
         );
         let drawn = samples(0.0);
