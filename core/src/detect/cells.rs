@@ -37,6 +37,17 @@ struct Fitted {
     offset: f64,
 }
 
+/// What the cells of one ROI gave.
+#[derive(Debug, Clone, PartialEq)]
+pub enum CellOutcome {
+    Read(CellRead),
+    /// The frame fitted (these corners), but the code did not decode from the cells: the
+    /// network may read it from there (a sliver's cells are a pixel wide).
+    Framed([[f64; 2]; 4]),
+    /// No frame: clutter, or too far from a marker.
+    Unfit,
+}
+
 /// The read of one ROI.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CellRead {
@@ -262,15 +273,45 @@ impl CellReader {
         roi: &[[f64; 2]; 4],
         max_errors: usize,
     ) -> Option<CellRead> {
+        match self.read_or_frame(family, image, roi, max_errors) {
+            CellOutcome::Read(read) => Some(read),
+            CellOutcome::Framed(_) | CellOutcome::Unfit => None,
+        }
+    }
+
+    /// [`CellReader::read`], saying on a failed read whether the frame fitted.
+    pub fn read_or_frame(
+        &self,
+        family: &Family,
+        image: &GrayImage,
+        roi: &[[f64; 2]; 4],
+        max_errors: usize,
+    ) -> CellOutcome {
+        let Some(fitted) = self.fit(image, roi) else {
+            return CellOutcome::Unfit;
+        };
+        if fitted.score < MIN_FIT {
+            return CellOutcome::Unfit;
+        }
+        match self.read_cells(family, image, &fitted, max_errors) {
+            Some(read) => CellOutcome::Read(read),
+            None => CellOutcome::Framed(fitted.roi),
+        }
+    }
+
+    fn read_cells(
+        &self,
+        family: &Family,
+        image: &GrayImage,
+        fitted: &Fitted,
+        max_errors: usize,
+    ) -> Option<CellRead> {
         let Fitted {
             roi,
             score: fit,
             gain,
             offset,
-        } = self.fit(image, roi)?;
-        if fit < MIN_FIT {
-            return None;
-        }
+        } = *fitted;
         let to_image = self.to_image(&roi)?;
         let keypoints = family.keypoints();
         let centres: Vec<[f64; 2]> = keypoints.iter().map(|k| to_image.apply(k.pos)).collect();

@@ -3,7 +3,7 @@
 //! dropped — a false ROI costs stage-2 passes, never a wrong ID. The CLI, the harness and the
 //! studio all detect through [`Detector::detect`].
 
-use super::cells::{CellRead, CellReader};
+use super::cells::{CellOutcome, CellRead, CellReader};
 use super::stage1::group::{nested, same_quad, Proposal};
 use super::stage1::pipeline::Outlined;
 use super::stage1::{ProposeOptions, Stage1};
@@ -265,7 +265,7 @@ impl Detector {
                     left.push(*p);
                 }
             }
-            let reads = self.cell_reads(image, &left, camera);
+            let reads = self.cell_reads(image, &left, camera, &mut timings);
             rounds.found.extend(reads.into_iter().flatten());
         }
         timings.proposals = rounds.read.len();
@@ -377,8 +377,11 @@ impl Detector {
         image: &GrayImage,
         proposals: &[Proposal],
         camera: Option<&Camera>,
+        timings: &mut Timings,
     ) -> Vec<Option<Found>> {
         let mut best: Vec<Option<Found>> = vec![None; proposals.len()];
+        // ROIs whose frame fitted but whose cells did not decode, with the fitted corners.
+        let mut framed: Vec<(usize, Proposal)> = Vec::new();
         for reader in &self.readers {
             let Some(cells) = &reader.cells else {
                 continue;
@@ -389,12 +392,22 @@ impl Detector {
                 ..self.options.read
             };
             use rayon::prelude::*;
-            let read: Vec<(usize, Stage2Result)> = proposals
+            // Per ROI: the marker its cells read, or the corners its frame fitted.
+            let outcomes: Vec<(usize, Result<Stage2Result, FittedCorners>)> = proposals
                 .par_iter()
                 .enumerate()
                 .with_max_len(1)
                 .filter_map(|(i, proposal)| {
-                    let cell_read = cells.read(&reader.family, image, &proposal.corners, limit)?;
+                    let cell_read = match cells.read_or_frame(
+                        &reader.family,
+                        image,
+                        &proposal.corners,
+                        limit,
+                    ) {
+                        CellOutcome::Read(read) => read,
+                        CellOutcome::Framed(corners) => return Some((i, Err(corners))),
+                        CellOutcome::Unfit => return None,
+                    };
                     let first = cell_result(&reader.family, &cell_read)?;
                     let marker = reader.stage2.continue_from(
                         image,
@@ -402,14 +415,46 @@ impl Detector {
                         &single,
                         camera.map(|c| (c, reader.side_m)),
                     )?;
-                    (marker.fixed_mismatches <= limit).then_some((i, marker))
+                    (marker.fixed_mismatches <= limit).then_some((i, Ok(marker)))
                 })
                 .collect();
+            let mut read = Vec::new();
+            for (i, outcome) in outcomes {
+                match outcome {
+                    Ok(marker) => read.push((i, marker)),
+                    Err(corners) => framed.push((
+                        i,
+                        Proposal {
+                            corners,
+                            ..proposals[i]
+                        },
+                    )),
+                }
+            }
             keep_fewest_corrections(&mut best, reader, proposals, read, true);
+        }
+        // The network reads a sliver from a ROI a pixel or two off that its cells, a pixel
+        // wide, cannot: the fitted frame's corners go to stage 2, held like a traced quad.
+        framed.retain(|(i, _)| best[*i].is_none());
+        let mut fitted: Vec<(usize, Proposal)> = Vec::new();
+        for (i, p) in framed {
+            if !fitted.iter().any(|(_, q)| same_quad(q, &p)) {
+                fitted.push((i, p));
+            }
+        }
+        let rois: Vec<Proposal> = fitted.iter().map(|(_, p)| *p).collect();
+        let reads = self.read_all(image, &rois, camera, Trust::Traced, timings);
+        for ((i, _), read) in fitted.into_iter().zip(reads) {
+            if best[i].is_none() {
+                best[i] = read;
+            }
         }
         best
     }
 }
+
+/// The corners of a ROI fitted to a marker's frame.
+type FittedCorners = [[f64; 2]; 4];
 
 /// Files one family's reads (proposal index, marker) into `best`: where two families read one
 /// ROI, the one whose code needed fewer corrections stays.
@@ -662,6 +707,32 @@ mod tests {
         assert_eq!(Trust::First.allowed(5, 0.12), 3);
         assert_eq!(Trust::Traced.allowed(5, 0.9), 3);
         assert_eq!(Trust::Later.allowed(5, 0.9), 2);
+    }
+
+    /// A marker 60 cm away at 65°, 62 × 25 px (development seed 22 #57, cut at x 700–1100,
+    /// y 330–630).
+    const STEEP: &[u8] = include_bytes!("testdata/steep-60cm-65deg.png");
+    const STEEP_TRUTH: [[f64; 2]; 4] = [
+        [255.92, 194.07],
+        [222.53, 141.59],
+        [243.33, 159.47],
+        [275.62, 209.46],
+    ];
+
+    /// A quad 6 px off fails in the network and in the cells, but its frame fits: the network
+    /// reads the marker from the fitted corners.
+    #[test]
+    fn the_network_reads_a_marker_from_the_frame_its_cells_fitted() {
+        let image = crate::image::decode(STEEP, &Default::default()).unwrap();
+        let family = crate::builtin::get("apriltag-36h11").unwrap().unwrap();
+        let mut detector = Detector::shipped(vec![family]).unwrap();
+        let (found, _) = detector.detect_with(&image, None);
+        assert_eq!(found.len(), 1, "{found:?}");
+        assert!(!found[0].cell_read);
+        assert_eq!(found[0].marker.id, 547);
+        assert_corners_within(&found[0], &STEEP_TRUTH, 1.5);
+        detector.options.cell_reads = false;
+        assert!(detector.detect_with(&image, None).0.is_empty());
     }
 
     fn assert_corners_within(found: &Found, truth: &[[f64; 2]; 4], px: f64) {
