@@ -76,8 +76,8 @@ pub struct DetectArgs {
     #[arg(long)]
     pub no_outline: bool,
     /// Read only through stage 2's network: no cell reads straight off the image for the ROIs
-    /// it reads nothing from, nor for the traced quads past its reads (black-and-white grid
-    /// families).
+    /// it reads nothing from, nor for the traced quads past its reads, and no second network
+    /// read from the marker frame the cells fitted (black-and-white grid families).
     #[arg(long)]
     pub no_cell_reads: bool,
     /// Write the detections file (the harness's format, for `tagsmith eval score`).
