@@ -9,9 +9,9 @@ use super::stage1::pipeline::Outlined;
 use super::stage1::{ProposeOptions, Stage1};
 use super::stage2::model_file::ModelError;
 use super::stage2::{shipped_model, ReadOptions, Stage2, Stage2Result};
-use super::{BenchDetector, DetectedKeypoint, Detection, Scores};
+use super::{BenchDetector, DetectedKeypoint, Detection};
 use crate::family::{Assignment, Family};
-use crate::geometry::Homography;
+use crate::geometry::{largest_corner_move, Homography};
 use crate::geometry::{Camera, PoseJson};
 use crate::image::GrayImage;
 use crate::io::Stopwatch;
@@ -445,7 +445,7 @@ impl Detector {
         // speed sets: 2–3 ms a 640×480 image without this).
         framed.retain(|(i, p)| {
             best[*i].is_none()
-                && (*i >= tried || largest_move(&proposals[*i].corners, &p.corners) >= 1.0)
+                && (*i >= tried || largest_corner_move(&proposals[*i].corners, &p.corners) >= 1.0)
         });
         let mut fitted: Vec<(usize, Proposal)> = Vec::new();
         for (i, p) in framed {
@@ -462,13 +462,6 @@ impl Detector {
         }
         best
     }
-}
-
-/// How far the farthest-moved corner of `a` lies from its place in `b`, in pixels.
-fn largest_move(a: &[[f64; 2]; 4], b: &[[f64; 2]; 4]) -> f64 {
-    (0..4)
-        .map(|i| (a[i][0] - b[i][0]).hypot(a[i][1] - b[i][1]))
-        .fold(0.0, f64::max)
 }
 
 /// The corners of a ROI fitted to a marker's frame.
@@ -659,24 +652,13 @@ impl Found {
     /// The marker in the detections file's format.
     pub fn detection(&self) -> Detection {
         let m = &self.marker;
-        let confidence = if m.keypoints.is_empty() {
-            0.0
-        } else {
-            m.keypoints.iter().map(|k| k.confidence).sum::<f64>() / m.keypoints.len() as f64
-        };
         Detection {
             id: m.id,
             corners: m.corners,
             pose: m.pose.as_ref().map(|p| PoseJson::from(&p.pose)),
             family: Some(self.family.clone()),
             keypoints: m.keypoints.clone(),
-            scores: Some(Scores {
-                roi: self.proposal.score,
-                keypoints: confidence,
-                corrected_errors: m.corrected_errors,
-                reprojection_rms_px: m.pose.as_ref().map(|p| p.rms_px),
-                cell_read: self.cell_read,
-            }),
+            scores: Some(m.scores(self.proposal.score, self.cell_read)),
         }
     }
 }
@@ -754,12 +736,7 @@ mod tests {
     }
 
     fn assert_corners_within(found: &Found, truth: &[[f64; 2]; 4], px: f64) {
-        let worst = (0..4)
-            .map(|i| {
-                let [x, y] = found.marker.corners[i];
-                (x - truth[i][0]).hypot(y - truth[i][1])
-            })
-            .fold(0.0, f64::max);
+        let worst = largest_corner_move(&found.marker.corners, truth);
         assert!(worst < px, "corners {worst:.2} px off");
     }
 

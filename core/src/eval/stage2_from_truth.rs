@@ -3,7 +3,7 @@
 
 use crate::detect::refine::RefineReport;
 use crate::detect::stage2::{ReadOptions, Stage2};
-use crate::detect::{BenchDetector, Detection, Scores};
+use crate::detect::{BenchDetector, Detection};
 use crate::geometry::Camera;
 use crate::image::GrayImage;
 use crate::pose::PoseJson;
@@ -88,21 +88,11 @@ impl BenchDetector for Stage2FromTruth {
             .extend(found.iter().filter_map(|d| d.refinement.clone()));
         found
             .into_iter()
-            .map(|d| {
-                let confidence = d.keypoints.iter().map(|k| k.confidence).sum::<f64>()
-                    / d.keypoints.len().max(1) as f64;
-                Detection {
-                    // How many corrections each read needed is what tells two stage-2 models
-                    // apart on far steep markers, where both still read.
-                    scores: Some(Scores {
-                        roi: 1.0,
-                        keypoints: confidence,
-                        corrected_errors: d.corrected_errors,
-                        reprojection_rms_px: d.pose.as_ref().map(|p| p.rms_px),
-                        cell_read: false,
-                    }),
-                    ..Detection::plain(d.id, d.corners, d.pose.map(|p| PoseJson::from(&p.pose)))
-                }
+            .map(|d| Detection {
+                // How many corrections each read needed is what tells two stage-2 models apart
+                // on far steep markers, where both still read. The ROI is the truth's: score 1.
+                scores: Some(d.scores(1.0, false)),
+                ..Detection::plain(d.id, d.corners, d.pose.map(|p| PoseJson::from(&p.pose)))
             })
             .collect()
     }

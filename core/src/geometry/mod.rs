@@ -27,7 +27,6 @@ pub enum GeometryError {
     BadCamera(&'static str),
 }
 
-/// Axis-aligned bounds of points: [min x, min y, max x, max y].
 /// Even-odd point-in-polygon test.
 pub fn inside_polygon(polygon: &[[f64; 2]], p: [f64; 2]) -> bool {
     let mut inside = false;
@@ -43,6 +42,14 @@ pub fn inside_polygon(polygon: &[[f64; 2]], p: [f64; 2]) -> bool {
     inside
 }
 
+/// How far the farthest-moved corner of quad `a` lies from the same corner of `b`, in pixels.
+pub fn largest_corner_move(a: &[[f64; 2]; 4], b: &[[f64; 2]; 4]) -> f64 {
+    (0..4)
+        .map(|i| (a[i][0] - b[i][0]).hypot(a[i][1] - b[i][1]))
+        .fold(0.0, f64::max)
+}
+
+/// Axis-aligned bounds of points: [min x, min y, max x, max y].
 pub fn bounding_box(points: &[[f64; 2]]) -> [f64; 4] {
     points
         .iter()

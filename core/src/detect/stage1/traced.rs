@@ -11,6 +11,7 @@
 
 use super::group::same_corners;
 use super::outline::{contrast_range, cross, noise_sigma};
+use crate::geometry::largest_corner_move;
 use crate::image::GrayImage;
 
 /// The noisiest image traced, as σ in gray levels: beyond it the dark pixels of noise join into
@@ -354,9 +355,7 @@ fn traced_quads(image: &GrayImage, offset: f32, options: &TraceOptions) -> Trace
             let hull_area = polygon_area(&hull);
             let hull = straightened(hull);
             let (quad, area) = largest_quad(&hull)?;
-            let short = (0..4)
-                .map(|i| distance(quad[i], quad[(i + 1) % 4]))
-                .fold(f64::MAX, f64::min);
+            let short = sides(&quad).into_iter().fold(f64::MAX, f64::min);
             (area >= options.min_area
                 && area >= options.fit * hull_area
                 && short >= options.min_side
@@ -494,9 +493,7 @@ fn blobs(runs: &[Run]) -> Vec<usize> {
 /// Whether a square seen by a camera can have `quad`'s opposite sides (see
 /// [`MAX_OPPOSITE_RATIO`]).
 fn seen_by_a_camera(quad: &[[f64; 2]; 4]) -> bool {
-    let longest = (0..4)
-        .map(|i| distance(quad[i], quad[(i + 1) % 4]))
-        .fold(0.0, f64::max);
+    let longest = sides(quad).into_iter().fold(0.0, f64::max);
     let bound = if longest >= CLOSE_LENGTH {
         MAX_OPPOSITE_RATIO_CLOSE
     } else {
@@ -507,9 +504,14 @@ fn seen_by_a_camera(quad: &[[f64; 2]; 4]) -> bool {
 
 /// The larger of the two ratios longer / shorter between opposite sides.
 fn opposite_sides_ratio(q: &[[f64; 2]; 4]) -> f64 {
-    let side = |i: usize| distance(q[i], q[(i + 1) % 4]).max(1e-9);
+    let side = sides(q).map(|s| s.max(1e-9));
     let ratio = |a: f64, b: f64| a.max(b) / a.min(b);
-    ratio(side(0), side(2)).max(ratio(side(1), side(3)))
+    ratio(side[0], side[2]).max(ratio(side[1], side[3]))
+}
+
+/// The lengths of a quad's sides, side i running from corner i to corner i + 1.
+fn sides(q: &[[f64; 2]; 4]) -> [f64; 4] {
+    std::array::from_fn(|i| distance(q[i], q[(i + 1) % 4]))
 }
 
 fn distance(a: [f64; 2], b: [f64; 2]) -> f64 {
@@ -597,12 +599,8 @@ fn fitted_to_edges(image: &GrayImage, quad: [[f64; 2]; 4]) -> [[f64; 2]; 4] {
             }
         }
     }
-    let longest = (0..4)
-        .map(|i| distance(quad[i], quad[(i + 1) % 4]))
-        .fold(0.0, f64::max);
-    let moved = (0..4)
-        .map(|i| distance(out[i], quad[i]))
-        .fold(0.0, f64::max);
+    let longest = sides(&quad).into_iter().fold(0.0, f64::max);
+    let moved = largest_corner_move(&out, &quad);
     if moved > 0.15 * longest || polygon_area(&out) <= 0.0 {
         return quad;
     }

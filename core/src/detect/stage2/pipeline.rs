@@ -9,7 +9,7 @@ use super::model_file::{self, ModelError, ModelHeader};
 use super::net::{NetConfig, Outputs, Stage2Net};
 use super::normalise_patch;
 use crate::detect::refine::{refine_marker, Lens, RefineMode, RefineReport, TemplateCache};
-use crate::detect::DetectedKeypoint;
+use crate::detect::{DetectedKeypoint, Scores};
 use crate::family::{Assignment, Family};
 use crate::geometry::{warp_bilinear, Camera, Homography};
 use crate::image::GrayImage;
@@ -69,6 +69,24 @@ pub struct Stage2Result {
     pub refinement: Option<RefineReport>,
     #[serde(skip)]
     pub pose: Option<PnpSolution>,
+}
+
+impl Stage2Result {
+    /// The read's scores in the detections file, with the ROI's `roi` score.
+    pub fn scores(&self, roi: f64, cell_read: bool) -> Scores {
+        let confidence = if self.keypoints.is_empty() {
+            0.0
+        } else {
+            self.keypoints.iter().map(|k| k.confidence).sum::<f64>() / self.keypoints.len() as f64
+        };
+        Scores {
+            roi,
+            keypoints: confidence,
+            corrected_errors: self.corrected_errors,
+            reprojection_rms_px: self.pose.as_ref().map(|p| p.rms_px),
+            cell_read,
+        }
+    }
 }
 
 impl Stage2 {
