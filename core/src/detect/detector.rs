@@ -755,6 +755,33 @@ mod tests {
         assert!(detector.detect_with(&image, None).0.is_empty());
     }
 
+    /// `tagsmith eval generate apriltag-36h11 --seed 40 --per-cell 5`, image 398, cut at x
+    /// 714–1034, y 518–758: ID 388 80 cm away at 75°, turned so that it is a rhombus 70 px long
+    /// and 6 px across, on flat background.
+    const FAR_RHOMBUS: &[u8] = include_bytes!("testdata/far-rhombus-80cm-75deg.png");
+    const FAR_RHOMBUS_TRUTH: [[f64; 2]; 4] = [
+        [160.67, 124.61],
+        [125.78, 110.33],
+        [157.73, 113.76],
+        [194.12, 128.86],
+    ];
+
+    /// The closer look's crop, normalised as the whole image is, shows the network the rhombus
+    /// it finds in the image doubled; normalised by its own contrast, or centred on the
+    /// rhombus's end, it showed nothing.
+    #[test]
+    fn a_far_rhombus_is_read_after_a_closer_look_through_the_images_contrast() {
+        let image = crate::image::decode(FAR_RHOMBUS, &Default::default()).unwrap();
+        let family = crate::builtin::get("apriltag-36h11").unwrap().unwrap();
+        let mut detector = Detector::shipped(vec![family]).unwrap();
+        let (found, _) = detector.detect_with(&image, None);
+        assert_eq!(found.len(), 1, "{found:?}");
+        assert_eq!(found[0].marker.id, 388);
+        assert_corners_within(&found[0], &FAR_RHOMBUS_TRUTH, 1.5);
+        detector.options.propose.close_look = false;
+        assert!(detector.detect_with(&image, None).0.is_empty());
+    }
+
     /// A cluttered scene (`tagsmith eval generate apriltag-36h11 --seed 16`, image 96, cut at x
     /// 0–640, y 150–630) with a marker 100 cm away at 60°, 10 px across (ID 483): its dark
     /// blobs trace more quads than the network reads, largest first, and the marker's comes

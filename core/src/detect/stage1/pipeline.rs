@@ -13,7 +13,7 @@ use super::outline::{outline_candidates, OutlineOptions};
 use super::traced::{traced_quads_near, TraceOptions};
 use super::STRIDE;
 use crate::detect::stage2::model_file::ModelError;
-use crate::detect::stage2::normalise_patch;
+use crate::detect::stage2::Contrast;
 use crate::geometry::inside_polygon;
 use crate::image::GrayImage;
 use burn::tensor::{Device, Tensor, TensorData};
@@ -151,7 +151,13 @@ impl Stage1 {
             if boxes.len() == CLOSE_LOOKS {
                 break;
             }
-            let [x, y] = corner.at;
+            // The box is centred part-way from the corner towards the marker's centre, where
+            // the network points: a box centred on a sliver's end cut off its other end (dev
+            // seed 41 #490, 60 px long).
+            let [x, y] = [
+                corner.at[0] + CLOSE_LOOK_LEAD * r * corner.direction[0],
+                corner.at[1] + CLOSE_LOOK_LEAD * r * corner.direction[1],
+            ];
             let seen = boxes.iter().any(|&[x0, y0]| {
                 let (cx, cy) = (x0 as f64 + r, y0 as f64 + r);
                 (x - cx).abs() < r / 2.0 && (y - cy).abs() < r / 2.0
@@ -172,13 +178,19 @@ impl Stage1 {
         if boxes.is_empty() {
             return Outlined(Vec::new());
         }
+        // Each crop normalised as the whole image is, as the network sees it there and as it
+        // was trained: a crop of flat background and a faint sliver, normalised by its own
+        // contrast, looked like no marker the network knew (dev seed 40 #398: read through the
+        // image's contrast, not through the crop's).
+        let contrast = Contrast::of(image);
         let levels: Vec<GrayImage> = (boxes.iter())
             .map(|&[x0, y0]| double(&image.crop(x0, y0, side, side)))
             .collect();
         let mut out: Vec<Candidate> = Vec::new();
-        for ([x0, y0], maps) in boxes
-            .into_iter()
-            .zip(maps_of(&self.net, &self.device, &levels))
+        for ([x0, y0], maps) in
+            boxes
+                .into_iter()
+                .zip(maps_with(&self.net, &self.device, &levels, Some(contrast)))
         {
             let corners = maps.corners(options.group.corner, 0.5);
             let mask = |p: [f64; 2]| maps.mask_at(p, 0.5);
@@ -217,6 +229,10 @@ const CLOSE_LOOK_CORNER: f64 = 0.5;
 /// How far a closer look reaches from its corner, in pixels: far slivers are at most about 60 px
 /// long.
 const CLOSE_LOOK_REACH: f64 = 48.0;
+
+/// How far towards the marker's centre a closer look's box is moved from its corner, as a share
+/// of [`CLOSE_LOOK_REACH`]: half the reach puts the centre of a 60-px sliver inside the box.
+const CLOSE_LOOK_LEAD: f64 = 0.5;
 
 /// Closer looks per image at most: each runs the network on a 192² crop, about 2 ms.
 const CLOSE_LOOKS: usize = 6;
@@ -512,12 +528,19 @@ pub fn halve(image: &GrayImage) -> GrayImage {
 /// The network input of same-sized images: each standardised like a stage-2 patch, padded with
 /// zeros (its mean) to a multiple of the stride. Returns the data and the padded width, height.
 pub fn input_of(images: &[GrayImage]) -> (Vec<f32>, usize, usize) {
+    input_with(images, None)
+}
+
+/// [`input_of`] with every image normalised by `contrast`, where given, instead of its own.
+fn input_with(images: &[GrayImage], contrast: Option<Contrast>) -> (Vec<f32>, usize, usize) {
     let (w, h) = (images[0].width as usize, images[0].height as usize);
     let pw = w.div_ceil(STRIDE) * STRIDE;
     let ph = h.div_ceil(STRIDE) * STRIDE;
     let mut data = vec![0.0f32; images.len() * pw * ph];
     for (n, image) in images.iter().enumerate() {
-        let normalised = normalise_patch(image);
+        let normalised = contrast
+            .unwrap_or_else(|| Contrast::of(image))
+            .normalise(image);
         for y in 0..h {
             let dst = n * pw * ph + y * pw;
             data[dst..dst + w].copy_from_slice(&normalised[y * w..(y + 1) * w]);
@@ -549,7 +572,17 @@ pub fn maps_from_raw(raw: &[f32], n: usize, columns: usize, rows: usize) -> Vec<
 
 /// Runs `net` on same-sized images.
 pub fn maps_of(net: &Stage1Net, device: &Device, images: &[GrayImage]) -> Vec<Maps> {
-    let (data, pw, ph) = input_of(images);
+    maps_with(net, device, images, None)
+}
+
+/// [`maps_of`] with every image normalised by `contrast`, where given, instead of its own.
+fn maps_with(
+    net: &Stage1Net,
+    device: &Device,
+    images: &[GrayImage],
+    contrast: Option<Contrast>,
+) -> Vec<Maps> {
+    let (data, pw, ph) = input_with(images, contrast);
     let x = Tensor::<4>::from_data(TensorData::new(data, [images.len(), 1, ph, pw]), device);
     let raw = net
         .forward(x)
