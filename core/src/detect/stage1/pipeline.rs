@@ -178,20 +178,16 @@ impl Stage1 {
         if boxes.is_empty() {
             return Outlined(Vec::new());
         }
-        // Each crop normalised as the whole image is, as the network sees it there and as it
-        // was trained: a crop of flat background and a faint sliver, normalised by its own
-        // contrast, looked like no marker the network knew (dev seed 40 #398: read through the
-        // image's contrast, not through the crop's).
-        let contrast = Contrast::of(image);
         let levels: Vec<GrayImage> = (boxes.iter())
             .map(|&[x0, y0]| double(&image.crop(x0, y0, side, side)))
             .collect();
         let mut out: Vec<Candidate> = Vec::new();
-        for ([x0, y0], maps) in
-            boxes
-                .into_iter()
-                .zip(maps_with(&self.net, &self.device, &levels, Some(contrast)))
-        {
+        // Each crop normalised as the whole image is, as the network sees it there and as it
+        // was trained: a crop of flat background and a faint sliver, normalised by its own
+        // contrast, looked like no marker the network knew (dev seed 40 #398: read through the
+        // image's contrast, not through the crop's).
+        let maps = maps_of(&self.net, &self.device, &levels, Some(search.contrast));
+        for ([x0, y0], maps) in boxes.into_iter().zip(maps) {
             let corners = maps.corners(options.group.corner, 0.5);
             let mask = |p: [f64; 2]| maps.mask_at(p, 0.5);
             // Corner indices stay unique across boxes, so that the selection takes each once.
@@ -243,6 +239,8 @@ const CLOSE_LOOKS: usize = 6;
 /// without it.
 pub struct Search {
     levels: Vec<Vec<Candidate>>,
+    /// The whole image's normalisation (its mean and contrast).
+    contrast: Contrast,
     /// Corners of every level for the outline search (most confident first), and its settings.
     weak_corners: Vec<Corner>,
     outline: Option<OutlineOptions>,
@@ -414,12 +412,15 @@ pub fn search_with(
     if options.upsample {
         levels.insert(0, (double(image), 0.5));
     }
+    // The image's own level's normalisation, which the closer looks reuse for their crops.
+    let contrast = Contrast::of(image);
     let mut weak_corners: Vec<Corner> = Vec::new();
     let mut all_maps = Vec::new();
     let levels = levels
         .into_iter()
         .map(|(level, scale)| {
-            let maps = maps_of(net, device, std::slice::from_ref(&level))
+            let own = (scale == 1.0).then_some(contrast);
+            let maps = maps_of(net, device, std::slice::from_ref(&level), own)
                 .pop()
                 .expect("one image in, one out");
             if let Some(outline) = &options.outline {
@@ -448,6 +449,7 @@ pub fn search_with(
     weak_corners.sort_by(|a, b| b.score.total_cmp(&a.score));
     Search {
         levels,
+        contrast,
         weak_corners,
         outline: options.outline,
         trace: options.trace,
@@ -527,12 +529,9 @@ pub fn halve(image: &GrayImage) -> GrayImage {
 
 /// The network input of same-sized images: each standardised like a stage-2 patch, padded with
 /// zeros (its mean) to a multiple of the stride. Returns the data and the padded width, height.
-pub fn input_of(images: &[GrayImage]) -> (Vec<f32>, usize, usize) {
-    input_with(images, None)
-}
-
-/// [`input_of`] with every image normalised by `contrast`, where given, instead of its own.
-fn input_with(images: &[GrayImage], contrast: Option<Contrast>) -> (Vec<f32>, usize, usize) {
+/// With `contrast`, every image is normalised by it instead of its own (a crop as it looks
+/// within the whole image).
+fn input_of(images: &[GrayImage], contrast: Option<Contrast>) -> (Vec<f32>, usize, usize) {
     let (w, h) = (images[0].width as usize, images[0].height as usize);
     let pw = w.div_ceil(STRIDE) * STRIDE;
     let ph = h.div_ceil(STRIDE) * STRIDE;
@@ -571,18 +570,14 @@ pub fn maps_from_raw(raw: &[f32], n: usize, columns: usize, rows: usize) -> Vec<
 }
 
 /// Runs `net` on same-sized images.
-pub fn maps_of(net: &Stage1Net, device: &Device, images: &[GrayImage]) -> Vec<Maps> {
-    maps_with(net, device, images, None)
-}
-
-/// [`maps_of`] with every image normalised by `contrast`, where given, instead of its own.
-fn maps_with(
+/// With `contrast`, every image is normalised by it instead of its own ([`input_of`]).
+pub fn maps_of(
     net: &Stage1Net,
     device: &Device,
     images: &[GrayImage],
     contrast: Option<Contrast>,
 ) -> Vec<Maps> {
-    let (data, pw, ph) = input_with(images, contrast);
+    let (data, pw, ph) = input_of(images, contrast);
     let x = Tensor::<4>::from_data(TensorData::new(data, [images.len(), 1, ph, pw]), device);
     let raw = net
         .forward(x)
