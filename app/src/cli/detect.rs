@@ -80,6 +80,11 @@ pub struct DetectArgs {
     /// read from the marker frame the cells fitted (black-and-white grid families).
     #[arg(long)]
     pub no_cell_reads: bool,
+    /// Do not read the ROIs nothing read again once their four sides are fitted to the image's
+    /// edges (a far steep sliver reads only from corners within about a pixel; a few ms on
+    /// images with markers left unread or clutter).
+    #[arg(long)]
+    pub no_edge_fits: bool,
     /// Write the detections file (the harness's format, for `tagsmith eval score`).
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -277,6 +282,7 @@ impl DetectArgs {
             .propose
             .set_image_searches(!self.no_outline);
         detector.options.cell_reads = !self.no_cell_reads;
+        detector.options.edge_fits = !self.no_edge_fits;
         if let Some(dir) = &self.annotate {
             std::fs::create_dir_all(dir)
                 .with_context(|| format!("cannot create the folder {}", dir.display()))
@@ -371,6 +377,10 @@ pub struct DetectSetArgs {
     /// With --full: no cell reads (as `detect --no-cell-reads`).
     #[arg(long)]
     pub no_cell_reads: bool,
+    /// With --full: no second reads of ROIs fitted to the image's edges (as `detect
+    /// --no-edge-fits`).
+    #[arg(long)]
+    pub no_edge_fits: bool,
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
 }
@@ -422,6 +432,7 @@ impl DetectSetArgs {
                 .propose
                 .set_image_searches(!self.no_outline);
             detector.options.cell_reads = !self.no_cell_reads;
+            detector.options.edge_fits = !self.no_edge_fits;
             let file = set::run_detector(&self.set, &s, &mut detector, &include)?;
             let json = serde_json::to_string_pretty(&file).failure()?;
             write_output(&self.output, json.as_bytes())?;
@@ -589,6 +600,7 @@ mod tests {
             upsample: false,
             no_outline: false,
             no_cell_reads: false,
+            no_edge_fits: false,
             json: None,
             sequential: false,
             side_mm: None,

@@ -4,6 +4,7 @@
 //! studio all detect through [`Detector::detect`].
 
 use super::cells::{CellOutcome, CellRead, CellReader};
+use super::stage1::edges::on_edges;
 use super::stage1::group::{nested, same_quad, Proposal};
 use super::stage1::pipeline::Outlined;
 use super::stage1::{ProposeOptions, Stage1};
@@ -34,6 +35,8 @@ pub struct DetectorOptions {
     /// Read the cells of ROIs stage 2 reads nothing from straight off the image (flat-celled
     /// families only).
     pub cell_reads: bool,
+    /// Read the ROIs no network read again once their sides are fitted to the image's edges.
+    pub edge_fits: bool,
 }
 
 impl Default for DetectorOptions {
@@ -42,6 +45,7 @@ impl Default for DetectorOptions {
             propose: ProposeOptions::default(),
             read: ReadOptions::default(),
             cell_reads: true,
+            edge_fits: true,
         }
     }
 }
@@ -253,6 +257,32 @@ impl Detector {
             &mut rounds,
             &mut timings,
         );
+        // Then the quads no network read, moved onto the image's edges: a far sliver 8–12 px
+        // across reads from corners within about a pixel, and stage 1's grid, a traced hull or
+        // a closer look leave them 2–4 px off; its long sides' edges place them to a fraction
+        // of a pixel (`stage1::edges`). Held like traced quads, since clutter fits too.
+        if self.options.edge_fits {
+            let mut refits: Vec<Proposal> = Vec::new();
+            for p in rounds.failed.iter().chain(&rounds.unread) {
+                if refits.len() == MAX_EDGE_REFITS {
+                    break;
+                }
+                if rounds.over_a_marker_read(p) {
+                    continue;
+                }
+                let Some(corners) = on_edges(image, p.corners) else {
+                    continue;
+                };
+                let refit = Proposal { corners, ..*p };
+                let tried =
+                    |q: &Proposal| largest_corner_move(&q.corners, &corners) < MIN_REFIT_MOVE_PX;
+                if !rounds.read.iter().chain(&refits).any(tried) {
+                    refits.push(refit);
+                }
+            }
+            let reads = self.read_all(image, &refits, camera, Trust::Traced, &mut timings);
+            rounds.record(refits, reads);
+        }
         // Last, the cells of the ROIs no network read (and of the image searches' quads left
         // unread), away from every marker read: after every round, so that a cell read of a
         // poor ROI never takes a marker's place from a network read of a better one (dev seed
@@ -544,6 +574,13 @@ const ROUNDS: usize = 3;
 const IMAGE_SEARCH_ROUNDS: usize = 3;
 const MAX_IMAGE_SEARCH_READS: usize = 4;
 
+/// Quads refitted to the image's edges and read again, per image at most.
+const MAX_EDGE_REFITS: usize = 8;
+
+/// A refitted quad whose corners all lie this close to a quad read already is not read again
+/// (pixels): the read would be the same.
+const MIN_REFIT_MOVE_PX: f64 = 0.5;
+
 /// How far a proposal's source is trusted: how many of the family's corrections its code may
 /// need. Clutter decodes as some code at the edge of the correction limit (a 36-symbol read at
 /// random lies within 5 symbols of one of 36h11's 587 codes in four turns once in 66 reads,
@@ -720,12 +757,14 @@ mod tests {
     ];
 
     /// A quad 6 px off fails in the network and in the cells, but its frame fits: the network
-    /// reads the marker from the fitted corners.
+    /// reads the marker from the fitted corners. (Its quad fitted to the image's edges reads
+    /// too; that read is off here, as it comes first.)
     #[test]
     fn the_network_reads_a_marker_from_the_frame_its_cells_fitted() {
         let image = crate::image::decode(STEEP, &Default::default()).unwrap();
         let family = crate::builtin::get("apriltag-36h11").unwrap().unwrap();
         let mut detector = Detector::shipped(vec![family]).unwrap();
+        detector.options.edge_fits = false;
         let (found, _) = detector.detect_with(&image, None);
         assert_eq!(found.len(), 1, "{found:?}");
         assert!(!found[0].cell_read);
@@ -794,18 +833,46 @@ mod tests {
         [291.01, 285.51],
     ];
 
-    /// The traced quads the network's reads do not reach still get cell reads.
+    /// The traced quads the network's reads do not reach still get cell reads. (The edge fits
+    /// read this one too, before the cells: off here.)
     #[test]
     fn a_sliver_traced_past_the_networks_reads_is_read_by_its_cells() {
         let image = crate::image::decode(CLUTTERED, &Default::default()).unwrap();
         let family = crate::builtin::get("apriltag-36h11").unwrap().unwrap();
         let mut detector = Detector::shipped(vec![family]).unwrap();
+        detector.options.edge_fits = false;
         let (found, _) = detector.detect_with(&image, None);
         assert_eq!(found.len(), 1, "{found:?}");
         assert!(found[0].cell_read);
         assert_eq!(found[0].marker.id, 483);
         assert_corners_within(&found[0], &CLUTTERED_TRUTH, 1.5);
         detector.options.cell_reads = false;
+        assert!(detector.detect_with(&image, None).0.is_empty());
+    }
+
+    /// An ArUco 6x6_250 marker 100 cm away at 60°, 10 px across (ID 181; `tagsmith eval
+    /// generate aruco-6x6_250 --seed 40 --per-cell 5`, image 480, cut at x 600–1240, y
+    /// 150–630): the one quad the searches propose for it, traced, is 2–3 px off at two
+    /// corners, too far for stage 2 on a marker 10 px across.
+    const EDGE_SLIVER: &[u8] = include_bytes!("testdata/aruco-sliver-100cm-60deg.png");
+    const EDGE_SLIVER_TRUTH: [[f64; 2]; 4] = [
+        [309.79, 220.48],
+        [320.01, 251.80],
+        [309.15, 237.93],
+        [298.74, 205.61],
+    ];
+
+    /// Moved onto the image's edges, a quad stage 2 failed on is read.
+    #[test]
+    fn a_sliver_is_read_once_its_quad_is_fitted_to_the_edges() {
+        let image = crate::image::decode(EDGE_SLIVER, &Default::default()).unwrap();
+        let family = crate::builtin::get("aruco-6x6_250").unwrap().unwrap();
+        let mut detector = Detector::shipped(vec![family]).unwrap();
+        let (found, _) = detector.detect_with(&image, None);
+        assert_eq!(found.len(), 1, "{found:?}");
+        assert_eq!(found[0].marker.id, 181);
+        assert_corners_within(&found[0], &EDGE_SLIVER_TRUTH, 2.0);
+        detector.options.edge_fits = false;
         assert!(detector.detect_with(&image, None).0.is_empty());
     }
 

@@ -8,6 +8,7 @@
 /// Input pixels per cell of the network's output grid.
 pub const STRIDE: usize = 4;
 
+pub mod edges;
 pub mod group;
 pub mod outline;
 pub mod targets;

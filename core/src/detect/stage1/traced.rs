@@ -9,6 +9,7 @@
 //! [`TraceOptions::window`] px), so shading across the image does not matter. Like every ROI,
 //! a traced quad is only a proposal: stage 2 decides, so a blob of clutter costs one read.
 
+use super::edges::{intersection, weighted_line};
 use super::group::same_corners;
 use super::outline::{contrast_range, cross, noise_sigma};
 use crate::geometry::largest_corner_move;
@@ -587,7 +588,8 @@ fn fitted_to_edges(image: &GrayImage, quad: [[f64; 2]; 4]) -> [[f64; 2]; 4] {
             }
         }
         if points.len() * 2 >= samples && points.len() >= 3 {
-            *line = Some(fit_line(&points));
+            let weighted: Vec<([f64; 2], f64)> = points.iter().map(|&p| (p, 1.0)).collect();
+            *line = weighted_line(&weighted);
         }
     }
     let mut out = quad;
@@ -605,35 +607,6 @@ fn fitted_to_edges(image: &GrayImage, quad: [[f64; 2]; 4]) -> [[f64; 2]; 4] {
         return quad;
     }
     out
-}
-
-/// The total-least-squares line through the points: a point on it and its direction.
-fn fit_line(points: &[[f64; 2]]) -> ([f64; 2], [f64; 2]) {
-    let n = points.len() as f64;
-    let mean = [
-        points.iter().map(|p| p[0]).sum::<f64>() / n,
-        points.iter().map(|p| p[1]).sum::<f64>() / n,
-    ];
-    let (mut xx, mut xy, mut yy) = (0.0, 0.0, 0.0);
-    for p in points {
-        let (dx, dy) = (p[0] - mean[0], p[1] - mean[1]);
-        xx += dx * dx;
-        xy += dx * dy;
-        yy += dy * dy;
-    }
-    // The principal axis of the scatter.
-    let angle = 0.5 * (2.0 * xy).atan2(xx - yy);
-    (mean, [angle.cos(), angle.sin()])
-}
-
-fn intersection(a: ([f64; 2], [f64; 2]), b: ([f64; 2], [f64; 2])) -> Option<[f64; 2]> {
-    let ((p, u), (q, v)) = (a, b);
-    let det = u[0] * v[1] - u[1] * v[0];
-    if det.abs() < 1e-6 {
-        return None;
-    }
-    let t = ((q[0] - p[0]) * v[1] - (q[1] - p[1]) * v[0]) / det;
-    Some([p[0] + t * u[0], p[1] + t * u[1]])
 }
 
 /// The convex polygon without the vertices where it turns by less than about 6°: the pixel
