@@ -42,6 +42,23 @@ pub fn inside_polygon(polygon: &[[f64; 2]], p: [f64; 2]) -> bool {
     inside
 }
 
+/// The signed area of a simple polygon: positive when it runs clockwise in the image (y down).
+pub fn polygon_area(polygon: &[[f64; 2]]) -> f64 {
+    let n = polygon.len();
+    (0..n)
+        .map(|i| {
+            let (a, b) = (polygon[i], polygon[(i + 1) % n]);
+            a[0] * b[1] - b[0] * a[1]
+        })
+        .sum::<f64>()
+        / 2.0
+}
+
+/// The distance between two points.
+pub fn distance(a: [f64; 2], b: [f64; 2]) -> f64 {
+    (a[0] - b[0]).hypot(a[1] - b[1])
+}
+
 /// How far the farthest-moved corner of quad `a` lies from the same corner of `b`, in pixels.
 pub fn largest_corner_move(a: &[[f64; 2]; 4], b: &[[f64; 2]; 4]) -> f64 {
     (0..4)

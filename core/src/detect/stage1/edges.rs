@@ -11,7 +11,7 @@
 //! 8 end within a pixel (with the traced quads' single pass over a 2-px step, 2: that coarser
 //! fit stays theirs, as it read two more of 1300 dev markers than this one there).
 
-use crate::geometry::largest_corner_move;
+use crate::geometry::{distance, largest_corner_move, polygon_area};
 use crate::image::GrayImage;
 
 /// A line: a point on it and its unit direction.
@@ -60,7 +60,7 @@ fn corners_of(quad: &[[f64; 2]; 4], lines: &[Line; 4]) -> Option<[[f64; 2]; 4]> 
     let longest = (0..4)
         .map(|i| distance(quad[i], quad[(i + 1) % 4]))
         .fold(0.0, f64::max);
-    let same_turn = signed_area(&out) * signed_area(quad) > 0.0;
+    let same_turn = polygon_area(&out) * polygon_area(quad) > 0.0;
     (largest_corner_move(&out, quad) <= 0.15 * longest && same_turn).then_some(out)
 }
 
@@ -175,20 +175,6 @@ pub(super) fn intersection(a: Line, b: Line) -> Option<[f64; 2]> {
     }
     let t = ((q[0] - p[0]) * v[1] - (q[1] - p[1]) * v[0]) / det;
     Some([p[0] + t * u[0], p[1] + t * u[1]])
-}
-
-fn distance(a: [f64; 2], b: [f64; 2]) -> f64 {
-    (a[0] - b[0]).hypot(a[1] - b[1])
-}
-
-fn signed_area(q: &[[f64; 2]; 4]) -> f64 {
-    (0..4)
-        .map(|i| {
-            let (a, b) = (q[i], q[(i + 1) % 4]);
-            a[0] * b[1] - b[0] * a[1]
-        })
-        .sum::<f64>()
-        / 2.0
 }
 
 #[cfg(test)]

@@ -13,6 +13,7 @@ use super::edges::{intersection, weighted_line};
 use super::group::same_corners;
 use super::outline::{contrast_range, cross, noise_sigma};
 use crate::geometry::largest_corner_move;
+use crate::geometry::{distance, polygon_area};
 use crate::image::GrayImage;
 
 /// The noisiest image traced, as σ in gray levels: beyond it the dark pixels of noise join into
@@ -515,10 +516,6 @@ fn sides(q: &[[f64; 2]; 4]) -> [f64; 4] {
     std::array::from_fn(|i| distance(q[i], q[(i + 1) % 4]))
 }
 
-fn distance(a: [f64; 2], b: [f64; 2]) -> f64 {
-    (a[0] - b[0]).hypot(a[1] - b[1])
-}
-
 /// The convex hull, clockwise in the image (y down), without collinear points (Andrew's
 /// monotone chain).
 fn convex_hull(mut points: Vec<[f64; 2]>) -> Vec<[f64; 2]> {
@@ -630,18 +627,6 @@ fn straightened(mut hull: Vec<[f64; 2]>) -> Vec<[f64; 2]> {
             None => return hull,
         }
     }
-}
-
-/// The signed area of a simple polygon: positive when it runs clockwise in the image (y down).
-fn polygon_area(polygon: &[[f64; 2]]) -> f64 {
-    let n = polygon.len();
-    (0..n)
-        .map(|i| {
-            let (a, b) = (polygon[i], polygon[(i + 1) % n]);
-            a[0] * b[1] - b[0] * a[1]
-        })
-        .sum::<f64>()
-        / 2.0
 }
 
 /// The four vertices of a convex polygon (in its order) that span the largest quadrilateral, and
