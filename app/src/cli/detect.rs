@@ -80,9 +80,10 @@ pub struct DetectArgs {
     /// read from the marker frame the cells fitted (black-and-white grid families).
     #[arg(long)]
     pub no_cell_reads: bool,
-    /// Do not read the ROIs nothing read again once their four sides are fitted to the image's
-    /// edges (a far steep sliver reads only from corners within about a pixel; a few ms on
-    /// images with markers left unread or clutter).
+    /// Skip the edge fits: quads of four of stage 1's corners whose sides the image's edges
+    /// confirm, and second reads of the ROIs nothing read once their four sides are fitted to
+    /// those edges (a far steep sliver reads only from corners within about a pixel; a few ms
+    /// on images with markers left unread or clutter).
     #[arg(long)]
     pub no_edge_fits: bool,
     /// Write the detections file (the harness's format, for `tagsmith eval score`).
@@ -377,8 +378,8 @@ pub struct DetectSetArgs {
     /// With --full: no cell reads (as `detect --no-cell-reads`).
     #[arg(long)]
     pub no_cell_reads: bool,
-    /// With --full: no second reads of ROIs fitted to the image's edges (as `detect
-    /// --no-edge-fits`).
+    /// With --full: no quads of corners confirmed by the image's edges, no second reads of ROIs
+    /// fitted to them (as `detect --no-edge-fits`).
     #[arg(long)]
     pub no_edge_fits: bool,
     #[arg(long, default_value_t = 0)]

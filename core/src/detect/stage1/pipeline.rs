@@ -3,6 +3,7 @@
 //! the network on every level, corners grouped into ROIs per level, the same ROI seen on two
 //! levels kept once.
 
+use super::edges::on_edges;
 use super::group::{
     candidates, image_from_level, mask_inside, merge_duplicates, quad_centre, same_quad, select,
     Candidate, Corner, GroupOptions, Maps, Proposal,
@@ -14,7 +15,7 @@ use super::traced::{traced_quads_near, TraceOptions};
 use super::STRIDE;
 use crate::detect::stage2::model_file::ModelError;
 use crate::detect::stage2::Contrast;
-use crate::geometry::inside_polygon;
+use crate::geometry::{inside_polygon, polygon_area};
 use crate::image::GrayImage;
 use burn::tensor::{Device, Tensor, TensorData};
 use std::path::Path;
@@ -230,6 +231,13 @@ const CLOSE_LOOK_REACH: f64 = 48.0;
 /// of [`CLOSE_LOOK_REACH`]: half the reach puts the centre of a 60-px sliver inside the box.
 const CLOSE_LOOK_LEAD: f64 = 0.5;
 
+/// The corner confidence of [`Search::corner_quads`]' corners, how many of them at most, how
+/// far apart two of one quad may be (px), and how many quads are fitted at most.
+const CORNER_QUAD_SCORE: f64 = 0.3;
+const CORNER_QUAD_CORNERS: usize = 24;
+const CORNER_QUAD_SPAN: f64 = 120.0;
+const CORNER_QUAD_FITS: usize = 300;
+
 /// Closer looks per image at most: each runs the network on a 192² crop, about 2 ms.
 const CLOSE_LOOKS: usize = 6;
 
@@ -337,6 +345,85 @@ impl Search {
                 },
             });
         }
+        Outlined(out)
+    }
+
+    /// Quads of four of the network's corners (finest two levels, at or above
+    /// [`CORNER_QUAD_SCORE`]) that no read accounts for, whose four sides the image's edges
+    /// confirm ([`on_edges`]), fitted to them. The grouping pairs corners by the directions the
+    /// network regresses, which on a sliver 8–12 px across point along its length from every
+    /// corner; here the image's edges decide instead.
+    pub fn corner_quads(&self, image: &GrayImage, covered: &[[[f64; 2]; 4]]) -> Outlined {
+        let grown = grown(covered);
+        let mut corners: Vec<Corner> = Vec::new();
+        for (maps, scale) in self.maps.iter().filter(|(_, s)| *s <= 2.0) {
+            for c in maps.corners(CORNER_QUAD_SCORE as f32, *scale) {
+                let known = corners
+                    .iter()
+                    .any(|o| (o.at[0] - c.at[0]).hypot(o.at[1] - c.at[1]) < 2.0);
+                if !known && !grown.iter().any(|q| inside_polygon(q, c.at)) {
+                    corners.push(c);
+                }
+            }
+        }
+        corners.sort_by(|a, b| b.score.total_cmp(&a.score));
+        corners.truncate(CORNER_QUAD_CORNERS);
+        let near = |a: usize, b: usize| {
+            let d =
+                (corners[a].at[0] - corners[b].at[0]).hypot(corners[a].at[1] - corners[b].at[1]);
+            (3.0..=CORNER_QUAD_SPAN).contains(&d)
+        };
+        let n = corners.len();
+        let mut out: Vec<Candidate> = Vec::new();
+        let mut fits = 0;
+        'all: for a in 0..n {
+            for b in a + 1..n {
+                if !near(a, b) {
+                    continue;
+                }
+                for c in b + 1..n {
+                    if !near(a, c) || !near(b, c) {
+                        continue;
+                    }
+                    for d in c + 1..n {
+                        if !near(a, d) || !near(b, d) || !near(c, d) {
+                            continue;
+                        }
+                        let mut ids = [a, b, c, d];
+                        let centre = [
+                            ids.iter().map(|&i| corners[i].at[0]).sum::<f64>() / 4.0,
+                            ids.iter().map(|&i| corners[i].at[1]).sum::<f64>() / 4.0,
+                        ];
+                        let turn = |i: &usize| {
+                            (corners[*i].at[1] - centre[1]).atan2(corners[*i].at[0] - centre[0])
+                        };
+                        ids.sort_by(|x, y| turn(x).total_cmp(&turn(y)));
+                        let q = ids.map(|i| corners[i].at);
+                        let convex = (0..4).all(|i| {
+                            let (p, m, r) = (q[i], q[(i + 1) % 4], q[(i + 2) % 4]);
+                            (m[0] - p[0]) * (r[1] - m[1]) - (m[1] - p[1]) * (r[0] - m[0]) > 0.0
+                        });
+                        if !convex || polygon_area(&q) < 40.0 {
+                            continue;
+                        }
+                        fits += 1;
+                        if fits > CORNER_QUAD_FITS {
+                            break 'all;
+                        }
+                        if let Some(fitted) = on_edges(image, q) {
+                            out.push(Candidate {
+                                corners: ids,
+                                proposal: Proposal {
+                                    corners: fitted,
+                                    score: ids.iter().map(|&i| corners[i].score).sum::<f64>() / 4.0,
+                                },
+                            });
+                        }
+                    }
+                }
+            }
+        }
+        out.sort_by(|a, b| b.proposal.score.total_cmp(&a.proposal.score));
         Outlined(out)
     }
 
