@@ -11,6 +11,7 @@
 //! 8 end within a pixel (with the traced quads' single pass over a 2-px step, 2: that coarser
 //! fit stays theirs, as it read two more of 1300 dev markers than this one there).
 
+use super::group::quad_centre;
 use crate::geometry::{distance, largest_corner_move, polygon_area};
 use crate::image::GrayImage;
 
@@ -43,10 +44,7 @@ pub fn on_edges(image: &GrayImage, quad: [[f64; 2]; 4]) -> Option<[[f64; 2]; 4]>
 
 /// Each side's edge line, where it shows one within `reach` px.
 fn side_lines(image: &GrayImage, quad: &[[f64; 2]; 4], reach: f64) -> [Option<Line>; 4] {
-    let centre = [
-        quad.iter().map(|p| p[0]).sum::<f64>() / 4.0,
-        quad.iter().map(|p| p[1]).sum::<f64>() / 4.0,
-    ];
+    let centre = quad_centre(quad);
     std::array::from_fn(|i| side_line(image, quad[i], quad[(i + 1) % 4], centre, reach))
 }
 
@@ -185,10 +183,7 @@ mod tests {
     /// A dark quad on a light quiet zone 1.2 px wide, on dark ground: a far steep marker on a
     /// dark table. Supersampled 4 × 4 per pixel so its edges fall between pixels.
     fn sliver_on_dark_ground(quad: &[[f64; 2]; 4]) -> GrayImage {
-        let centre = [
-            quad.iter().map(|p| p[0]).sum::<f64>() / 4.0,
-            quad.iter().map(|p| p[1]).sum::<f64>() / 4.0,
-        ];
+        let centre = quad_centre(quad);
         // The quiet zone's outline: every side moved out by 1.2 px.
         let grown = {
             let lines: Vec<Line> = (0..4)

@@ -390,10 +390,7 @@ impl Search {
                             continue;
                         }
                         let mut ids = [a, b, c, d];
-                        let centre = [
-                            ids.iter().map(|&i| corners[i].at[0]).sum::<f64>() / 4.0,
-                            ids.iter().map(|&i| corners[i].at[1]).sum::<f64>() / 4.0,
-                        ];
+                        let centre = quad_centre(&ids.map(|i| corners[i].at));
                         let turn = |i: &usize| {
                             (corners[*i].at[1] - centre[1]).atan2(corners[*i].at[0] - centre[0])
                         };
