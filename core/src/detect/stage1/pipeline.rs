@@ -10,12 +10,12 @@ use super::group::{
 };
 use super::model_file::{self, Stage1Header};
 use super::net::{NetConfig, Stage1Net, MAPS};
-use super::outline::{outline_candidates, OutlineOptions};
+use super::outline::{cross, outline_candidates, OutlineOptions};
 use super::traced::{traced_quads_near, TraceOptions};
 use super::STRIDE;
 use crate::detect::stage2::model_file::ModelError;
 use crate::detect::stage2::Contrast;
-use crate::geometry::{inside_polygon, polygon_area};
+use crate::geometry::{distance, inside_polygon, polygon_area};
 use crate::image::GrayImage;
 use burn::tensor::{Device, Tensor, TensorData};
 use std::path::Path;
@@ -358,9 +358,7 @@ impl Search {
         let mut corners: Vec<Corner> = Vec::new();
         for (maps, scale) in self.maps.iter().filter(|(_, s)| *s <= 2.0) {
             for c in maps.corners(CORNER_QUAD_SCORE as f32, *scale) {
-                let known = corners
-                    .iter()
-                    .any(|o| (o.at[0] - c.at[0]).hypot(o.at[1] - c.at[1]) < 2.0);
+                let known = corners.iter().any(|o| distance(o.at, c.at) < 2.0);
                 if !known && !grown.iter().any(|q| inside_polygon(q, c.at)) {
                     corners.push(c);
                 }
@@ -369,9 +367,7 @@ impl Search {
         corners.sort_by(|a, b| b.score.total_cmp(&a.score));
         corners.truncate(CORNER_QUAD_CORNERS);
         let near = |a: usize, b: usize| {
-            let d =
-                (corners[a].at[0] - corners[b].at[0]).hypot(corners[a].at[1] - corners[b].at[1]);
-            (3.0..=CORNER_QUAD_SPAN).contains(&d)
+            (3.0..=CORNER_QUAD_SPAN).contains(&distance(corners[a].at, corners[b].at))
         };
         let n = corners.len();
         let mut out: Vec<Candidate> = Vec::new();
@@ -396,10 +392,11 @@ impl Search {
                         };
                         ids.sort_by(|x, y| turn(x).total_cmp(&turn(y)));
                         let q = ids.map(|i| corners[i].at);
-                        let convex = (0..4).all(|i| {
-                            let (p, m, r) = (q[i], q[(i + 1) % 4], q[(i + 2) % 4]);
-                            (m[0] - p[0]) * (r[1] - m[1]) - (m[1] - p[1]) * (r[0] - m[0]) > 0.0
-                        });
+                        // Plain convexity, not the outline search's bar on corners flatter
+                        // than ~170°: a needle's waist corners near it (167° on dev seed 41
+                        // #348).
+                        let convex =
+                            (0..4).all(|i| cross(q[i], q[(i + 1) % 4], q[(i + 2) % 4]) > 0.0);
                         if !convex || polygon_area(&q) < 40.0 {
                             continue;
                         }
