@@ -254,7 +254,8 @@ pub fn extract(spec: &PatchSpec, raw: &RawOutputs, min_confidence: f64) -> Vec<F
         })
         .collect();
     candidates.sort_by(|a, b| b.1.total_cmp(&a.1));
-    let r = spec.cluster_radius();
+    // Squared, because this pairwise test runs for every pair of candidates of every read.
+    let r_squared = spec.cluster_radius().powi(2);
     let mut used = vec![false; candidates.len()];
     let mut found = Vec::new();
     for k in 0..candidates.len() {
@@ -267,7 +268,7 @@ pub fn extract(spec: &PatchSpec, raw: &RawOutputs, min_confidence: f64) -> Vec<F
         let mut votes = vec![0.0f64; c];
         for j in k..candidates.len() {
             let (pos, conf, anchor) = candidates[j];
-            if used[j] || (pos[0] - centre[0]).hypot(pos[1] - centre[1]) >= r {
+            if used[j] || (pos[0] - centre[0]).powi(2) + (pos[1] - centre[1]).powi(2) >= r_squared {
                 continue;
             }
             used[j] = true;
