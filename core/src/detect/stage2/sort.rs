@@ -67,14 +67,17 @@ fn match_once(
     h: &Homography,
 ) -> Vec<Option<usize>> {
     let kps = family.keypoints();
+    // Pairs by squared distance: only compared, and this runs for every keypoint against every
+    // point found, several times per patch (`hypot` is a library call).
+    let squared = |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2);
     let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
     for &k in regressed {
         let p = h.apply(kps[k].pos);
         let q = h.apply([kps[k].pos[0] + kps[k].size, kps[k].pos[1]]);
-        let radius = 0.5 * (q[0] - p[0]).hypot(q[1] - p[1]);
+        let radius_squared = 0.25 * squared(q, p);
         for (f, kp) in found.iter().enumerate() {
-            let d = (kp.pos[0] - p[0]).hypot(kp.pos[1] - p[1]);
-            if d < radius {
+            let d = squared(kp.pos, p);
+            if d < radius_squared {
                 pairs.push((d, k, f));
             }
         }
