@@ -59,6 +59,12 @@ pub fn distance(a: [f64; 2], b: [f64; 2]) -> f64 {
     (a[0] - b[0]).hypot(a[1] - b[1])
 }
 
+/// The squared distance between two points: for comparisons in hot loops, where `hypot` (a
+/// library call) would cost more than the rest.
+pub fn squared_distance(a: [f64; 2], b: [f64; 2]) -> f64 {
+    (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)
+}
+
 /// How far the farthest-moved corner of quad `a` lies from the same corner of `b`, in pixels.
 pub fn largest_corner_move(a: &[[f64; 2]; 4], b: &[[f64; 2]; 4]) -> f64 {
     (0..4)

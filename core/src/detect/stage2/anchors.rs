@@ -12,7 +12,7 @@
 //! lets the model train on two CPU cores. (Training quads with a_i near 0.25 on both sides shrink the
 //! marker to 0.5 of the patch: 1.6 anchors per pitch for 10 × 10, 2.0 for 8 × 8.)
 
-use crate::geometry::inside_polygon;
+use crate::geometry::{inside_polygon, squared_distance};
 use crate::synth::KeypointTruth;
 
 /// Anchor class of background; category `c` is class `c + 1`.
@@ -268,7 +268,7 @@ pub fn extract(spec: &PatchSpec, raw: &RawOutputs, min_confidence: f64) -> Vec<F
         let mut votes = vec![0.0f64; c];
         for j in k..candidates.len() {
             let (pos, conf, anchor) = candidates[j];
-            if used[j] || (pos[0] - centre[0]).powi(2) + (pos[1] - centre[1]).powi(2) >= r_squared {
+            if used[j] || squared_distance(pos, centre) >= r_squared {
                 continue;
             }
             used[j] = true;

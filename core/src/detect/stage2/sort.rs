@@ -5,7 +5,7 @@
 
 use super::anchors::Found;
 use crate::family::{Assignment, Family};
-use crate::geometry::Homography;
+use crate::geometry::{squared_distance, Homography};
 
 /// Found keypoints in template order.
 #[derive(Debug, Clone)]
@@ -68,15 +68,14 @@ fn match_once(
 ) -> Vec<Option<usize>> {
     let kps = family.keypoints();
     // Pairs by squared distance: only compared, and this runs for every keypoint against every
-    // point found, several times per patch (`hypot` is a library call).
-    let squared = |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2);
+    // point found, several times per patch.
     let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
     for &k in regressed {
         let p = h.apply(kps[k].pos);
         let q = h.apply([kps[k].pos[0] + kps[k].size, kps[k].pos[1]]);
-        let radius_squared = 0.25 * squared(q, p);
+        let radius_squared = 0.25 * squared_distance(q, p);
         for (f, kp) in found.iter().enumerate() {
-            let d = squared(kp.pos, p);
+            let d = squared_distance(kp.pos, p);
             if d < radius_squared {
                 pairs.push((d, k, f));
             }
