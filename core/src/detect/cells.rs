@@ -37,6 +37,26 @@ struct Fitted {
     offset: f64,
 }
 
+/// The frame fit's scores of the quads it has tried, by their corners' exact bits. Coordinate
+/// ascent keeps coming back to quads it scored: the sweep after a move tries again every trial it
+/// made after that move, a step back undoes one, and the ascent with side moves starts with the
+/// corners-only ascent's first sweep. A score samples the image at every known point (~270 for
+/// 36h11), so each quad is scored once; exact keys keep the ascent's path and result as they
+/// were (a quarter of the trials on the 640×480 speed set were repeats).
+#[derive(Default)]
+struct ScoredQuads(std::collections::HashMap<[u64; 8], Option<Fitted>>);
+
+impl ScoredQuads {
+    fn score(
+        &mut self,
+        quad: &[[f64; 2]; 4],
+        score: impl FnOnce(&[[f64; 2]; 4]) -> Option<Fitted>,
+    ) -> Option<Fitted> {
+        let key: [u64; 8] = std::array::from_fn(|i| quad[i / 2][i % 2].to_bits());
+        *self.0.entry(key).or_insert_with(|| score(quad))
+    }
+}
+
 /// What the cells of one ROI gave.
 #[derive(Debug, Clone, PartialEq)]
 pub enum CellOutcome {
@@ -201,7 +221,8 @@ impl CellReader {
     /// a pixel or two wide, and a quad traced or grouped a few pixels off samples its
     /// neighbours; the frame, which is known whatever the code, pins it down.
     fn fit(&self, image: &GrayImage, roi: &[[f64; 2]; 4]) -> Option<Fitted> {
-        let by_corners = self.ascend(image, roi, CORNER_MOVES)?;
+        let mut scored = ScoredQuads::default();
+        let by_corners = self.ascend(image, roi, CORNER_MOVES, &mut scored)?;
         if by_corners.score >= MIN_FIT || by_corners.score < SIDE_MOVES_FROM {
             return Some(by_corners);
         }
@@ -211,7 +232,7 @@ impl CellReader {
         // reads with 0 corrections). The corners alone go first: with the wider moves from the
         // start, the ascent takes a shift that climbs at once and misses a quad 14 px off that
         // single corners bring in (dev seed 10 #77).
-        let by_sides = self.ascend(image, roi, SIDE_MOVES)?;
+        let by_sides = self.ascend(image, roi, SIDE_MOVES, &mut scored)?;
         Some(if by_sides.score > by_corners.score {
             by_sides
         } else {
@@ -220,9 +241,16 @@ impl CellReader {
     }
 
     /// Coordinate ascent of the fit from `roi`, each trial moving the corners of one of `moves`
-    /// together by one step along one axis.
-    fn ascend(&self, image: &GrayImage, roi: &[[f64; 2]; 4], moves: &[&[usize]]) -> Option<Fitted> {
-        let mut best = self.score(image, roi)?;
+    /// together by one step along one axis. `scored` holds the quads scored before (by this
+    /// ascent or another from the same ROI).
+    fn ascend(
+        &self,
+        image: &GrayImage,
+        roi: &[[f64; 2]; 4],
+        moves: &[&[usize]],
+        scored: &mut ScoredQuads,
+    ) -> Option<Fitted> {
+        let mut best = scored.score(roi, |quad| self.score(image, quad))?;
         for (round, step) in FIT_STEPS.into_iter().enumerate() {
             // A quad that the coarsest step leaves far from fitting sits on clutter, or too far
             // from a marker to be pulled in: the finer steps are not spent on it.
@@ -248,7 +276,9 @@ impl CellReader {
                             if too_far {
                                 continue;
                             }
-                            if let Some(fitted) = self.score(image, &trial) {
+                            if let Some(fitted) =
+                                scored.score(&trial, |quad| self.score(image, quad))
+                            {
                                 if fitted.score > best.score {
                                     (best, moved) = (fitted, true);
                                 }
@@ -471,12 +501,40 @@ mod tests {
     ];
 
     #[test]
+    fn the_fit_scores_each_quad_it_tries_once() {
+        let family = family("apriltag-36h11");
+        let image = crate::image::decode(FLAT_SLIVER, &Default::default()).unwrap();
+        let reader = CellReader::new(&family).unwrap();
+        let mut scored = ScoredQuads::default();
+        let calls = std::cell::Cell::new(0);
+        let mut score = |quad: &[[f64; 2]; 4]| {
+            scored.score(quad, |q| {
+                calls.set(calls.get() + 1);
+                reader.score(&image, q)
+            })
+        };
+        let first = score(&FLAT_SLIVER_TRACED);
+        let mut moved = FLAT_SLIVER_TRACED;
+        moved[2][0] += 0.25;
+        let other = score(&moved);
+        assert_eq!(score(&FLAT_SLIVER_TRACED), first);
+        assert_eq!(score(&moved), other);
+        assert_ne!(first, other);
+        assert_eq!(calls.get(), 2);
+    }
+
+    #[test]
     fn a_sliver_whose_corners_alone_stall_is_fitted_by_moving_its_sides() {
         let family = family("apriltag-36h11");
         let image = crate::image::decode(FLAT_SLIVER, &Default::default()).unwrap();
         let reader = CellReader::new(&family).unwrap();
         let by_corners = reader
-            .ascend(&image, &FLAT_SLIVER_TRACED, CORNER_MOVES)
+            .ascend(
+                &image,
+                &FLAT_SLIVER_TRACED,
+                CORNER_MOVES,
+                &mut ScoredQuads::default(),
+            )
             .unwrap();
         assert!(
             by_corners.score < MIN_FIT,
