@@ -120,6 +120,19 @@ impl Stage2 {
 
     /// Network outputs for patches of `spec.size`².
     pub fn run_patches(&self, patches: &[GrayImage]) -> Vec<RawOutputs> {
+        // Two halves on the two cores rather than one batch whose layers burn spreads over
+        // both: that spreading gains little on a few 128-px patches (see `stage1::search_with`).
+        // Each patch's outputs are its own whatever its batch.
+        if patches.len() >= 2 {
+            let (a, b) = patches.split_at(patches.len() / 2);
+            let (mut a, b) = rayon::join(|| self.run_batch(a), || self.run_batch(b));
+            a.extend(b);
+            return a;
+        }
+        self.run_batch(patches)
+    }
+
+    fn run_batch(&self, patches: &[GrayImage]) -> Vec<RawOutputs> {
         let p = self.spec.size as usize;
         let pixels: Vec<f32> = patches.iter().flat_map(normalise_patch).collect();
         let x = Tensor::<4>::from_data(
