@@ -15,6 +15,8 @@ pub mod targets;
 pub mod traced;
 
 #[cfg(feature = "detect")]
+pub mod bands;
+#[cfg(feature = "detect")]
 pub mod model_file;
 #[cfg(feature = "detect")]
 pub mod net;

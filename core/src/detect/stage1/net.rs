@@ -11,7 +11,8 @@
 //! 640×480 at width 24). See [`macs`].
 
 use crate::detect::stage2::net::{
-    batch_norm_unless, fold_batch_norm, folded_blocks, stem, trunk_blocks, SeparableBlock,
+    batch_norm_unless, fold_batch_norm, folded_blocks, separable_trunk, stem, trunk_blocks,
+    SeparableBlock,
 };
 use burn::module::Module;
 use burn::nn::conv::{Conv2d, Conv2dConfig};
@@ -82,6 +83,20 @@ impl Stage1Net {
     }
 }
 
+/// How far from an output cell's centre (in input pixels, along either axis) the input can
+/// change its value: the 3 × 3 stem, the trunk's 3 × 3 depthwise layers at their strides and
+/// dilations, and the head's.
+pub fn receptive_radius() -> usize {
+    // The width does not change the geometry.
+    let mut radius = 1;
+    let mut step = 2;
+    for (_, _, stride, dilation) in separable_trunk(4) {
+        radius += dilation * step;
+        step *= stride;
+    }
+    radius + step
+}
+
 /// Multiply-accumulates of one forward pass over `pixels` input pixels (convolutions only).
 pub fn macs(config: &NetConfig, pixels: u64) -> u64 {
     let w = config.width as u64;
@@ -99,6 +114,12 @@ pub fn macs(config: &NetConfig, pixels: u64) -> u64 {
 #[cfg(test)]
 mod tests {
     use super::super::model_file;
+
+    #[test]
+    fn the_receptive_field_reaches_37_pixels_from_a_cell() {
+        // Stem 1, trunk 2 + 2 + 4 + 8 + 16 (stride 4 from its second block), head 4.
+        assert_eq!(super::receptive_radius(), 37);
+    }
     use super::super::pipeline::SHIPPED_STAGE1;
     use burn::tensor::{Device, Tensor, TensorData};
 

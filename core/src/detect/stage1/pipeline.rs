@@ -497,24 +497,14 @@ pub fn search_with(
     let contrast = Contrast::of(image);
     let mut weak_corners: Vec<Corner> = Vec::new();
     let mut all_maps = Vec::new();
-    // The levels' networks run side by side, one level per core: burn spreads each layer over
-    // both cores, but on these small tensors waking the other core costs about what it saves
-    // (one thread: stage 1 only ~13 % slower). A level's maps do not depend on the others', so
-    // the corners below are the same; they are still gathered level by level, in order.
-    use rayon::prelude::*;
-    let level_maps: Vec<(Maps, f64)> = levels
-        .par_iter()
-        .with_max_len(1)
-        .map(|(level, scale)| {
-            let own = (*scale == 1.0).then_some(contrast);
-            let maps = maps_of(net, device, std::slice::from_ref(level), own)
-                .pop()
-                .expect("one image in, one out");
-            (maps, *scale)
-        })
+    let level_images: Vec<&GrayImage> = levels.iter().map(|(level, _)| level).collect();
+    let contrasts: Vec<Option<Contrast>> = (levels.iter())
+        .map(|(_, scale)| (*scale == 1.0).then_some(contrast))
         .collect();
-    let levels = level_maps
+    let level_maps = super::bands::pyramid_maps(net, device, &level_images, &contrasts)
         .into_iter()
+        .zip(levels.iter().map(|(_, scale)| *scale));
+    let levels = level_maps
         .map(|(maps, scale)| {
             if let Some(outline) = &options.outline {
                 // A corner with no marker beside it is one of the background's.
