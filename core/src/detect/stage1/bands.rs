@@ -1,10 +1,11 @@
 //! The pyramid's networks on the two cores. burn spreads each layer over both cores, but on
-//! tensors this small waking the other core costs about what it saves; two whole forward passes
-//! side by side do not wake anything. The levels are unequal (each a quarter of the one above),
-//! so the largest is cut into two bands of rows, each with a margin of the network's receptive
-//! field on the cut side: an output cell whose receptive field lies inside its band is computed
-//! from the same pixels as on the whole level, so the stitched maps are the whole level's. The
-//! cut is placed so that each core's band plus its share of the smaller levels is the same work.
+//! tensors this small that gains little (at 1280×960 the pyramid took 157 ms on one thread and
+//! 110 ms on two); two whole forward passes side by side use both. The levels are unequal (each
+//! a quarter of the one above), so the largest is cut into two bands of rows, each with a margin
+//! of the network's receptive field on the cut side: an output cell whose receptive field lies
+//! inside its band is computed from the same pixels as on the whole level, so the stitched maps
+//! are the whole level's. The cut is placed so that each core's band plus its share of the
+//! smaller levels is the same work.
 
 use super::group::Maps;
 use super::net::{receptive_radius, Stage1Net};
