@@ -31,11 +31,7 @@ pub fn pyramid_maps(
     levels: &[&GrayImage],
     contrasts: &[Option<Contrast>],
 ) -> Vec<Maps> {
-    let one = |i: usize| {
-        maps_of(net, device, std::slice::from_ref(levels[i]), contrasts[i])
-            .pop()
-            .expect("one image in, one out")
-    };
+    let one = |i: usize| maps_of_one(net, device, levels[i], contrasts[i]);
     let largest = (0..levels.len()).max_by_key(|&i| pixels(levels[i]));
     let (Some(largest), true) = (largest, rayon::current_num_threads() >= 2) else {
         return (0..levels.len()).map(one).collect();
@@ -67,9 +63,7 @@ pub fn pyramid_maps(
     let whole = contrasts[largest].unwrap_or_else(|| Contrast::of(levels[largest]));
     let band = |from: usize, to: usize| {
         let image = levels[largest].crop(0, from as u32, width as u32, (to - from) as u32);
-        maps_of(net, device, std::slice::from_ref(&image), Some(whole))
-            .pop()
-            .expect("one image in, one out")
+        maps_of_one(net, device, &image, Some(whole))
     };
     let height = levels[largest].height as usize;
     let run = |first: (usize, usize), share: &[usize]| {
@@ -89,6 +83,18 @@ pub fn pyramid_maps(
     maps.into_iter()
         .map(|m| m.expect("every level ran"))
         .collect()
+}
+
+/// [`maps_of`] for one image.
+fn maps_of_one(
+    net: &Stage1Net,
+    device: &Device,
+    image: &GrayImage,
+    contrast: Option<Contrast>,
+) -> Maps {
+    maps_of(net, device, std::slice::from_ref(image), contrast)
+        .pop()
+        .expect("one image in, one out")
 }
 
 fn pixels(image: &GrayImage) -> usize {
@@ -178,11 +184,7 @@ mod tests {
         let refs: Vec<&GrayImage> = levels.iter().map(|(l, _)| l).collect();
         let contrasts = vec![Some(Contrast::of(&image)), None, None];
         let whole: Vec<Maps> = (0..refs.len())
-            .map(|i| {
-                maps_of(&net, &device, std::slice::from_ref(refs[i]), contrasts[i])
-                    .pop()
-                    .unwrap()
-            })
+            .map(|i| maps_of_one(&net, &device, refs[i], contrasts[i]))
             .collect();
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(2)

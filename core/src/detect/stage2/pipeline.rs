@@ -121,7 +121,7 @@ impl Stage2 {
     /// Network outputs for patches of `spec.size`².
     pub fn run_patches(&self, patches: &[GrayImage]) -> Vec<RawOutputs> {
         // Two halves on the two cores rather than one batch whose layers burn spreads over
-        // both: that spreading gains little on a few 128-px patches (see `stage1::search_with`).
+        // both: that spreading gains little on a few 128-px patches (see `stage1::bands`).
         // Each patch's outputs are its own whatever its batch.
         if patches.len() >= 2 {
             let (a, b) = patches.split_at(patches.len() / 2);
