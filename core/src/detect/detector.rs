@@ -4,6 +4,7 @@
 //! studio all detect through [`Detector::detect`].
 
 use super::cells::{CellOutcome, CellRead, CellReader};
+use super::precheck::PreCheck;
 use super::stage1::edges::on_edges;
 use super::stage1::group::{nested, same_quad, Proposal};
 use super::stage1::pipeline::Outlined;
@@ -26,6 +27,9 @@ pub struct FamilyReader {
     pub side_m: f64,
     /// Reads cells straight off the image where stage 2 reads nothing (flat-celled families).
     pub cells: Option<CellReader>,
+    /// Turns away the image searches' quads that cannot frame one of the family's markers
+    /// before they cost a stage-2 pass (families whose ROI sits on a contrasting frame).
+    pub precheck: Option<PreCheck>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -60,7 +64,8 @@ pub struct Timings {
     pub stage2_ms: f64,
     /// Stage-1 ROIs read, over every round.
     pub proposals: usize,
-    /// Stage-2 reads started (proposals × families).
+    /// Stage-2 reads started (proposals × families, less the quads the pre-read check turned
+    /// away).
     pub reads: usize,
 }
 
@@ -107,11 +112,13 @@ impl FamilyReader {
     pub fn new(family: Family, stage2: Stage2) -> Self {
         let side_m = family.spec().print.marker_side_mm / 1000.0;
         let cells = CellReader::new(&family);
+        let precheck = PreCheck::new(&family);
         Self {
             family,
             stage2,
             side_m,
             cells,
+            precheck,
         }
     }
 
@@ -386,8 +393,23 @@ impl Detector {
         let rois: Vec<[[f64; 2]; 4]> = proposals.iter().map(|p| p.corners).collect();
         let mut best: Vec<Option<Found>> = vec![None; proposals.len()];
         for reader in &self.readers {
-            timings.reads += rois.len();
-            let firsts = reader.stage2.first_passes(image, &rois);
+            // Quads traced around blobs go to stage 2 only where they may frame a marker; the
+            // rest fail as stage 2 would have failed them, and stay for the later searches.
+            let checked: Vec<usize> = match (&reader.precheck, trust) {
+                (Some(check), Trust::Traced) => (0..rois.len())
+                    .filter(|&i| check.passes(image, &rois[i]))
+                    .collect(),
+                _ => (0..rois.len()).collect(),
+            };
+            let checked_rois: Vec<[[f64; 2]; 4]> = checked.iter().map(|&i| rois[i]).collect();
+            timings.reads += checked_rois.len();
+            let mut firsts = vec![None; rois.len()];
+            for (i, first) in checked
+                .iter()
+                .zip(reader.stage2.first_passes(image, &checked_rois))
+            {
+                firsts[*i] = first;
+            }
             // The rest of each read (second pass, alignment, pose) on both cores.
             use rayon::prelude::*;
             let read: Vec<(usize, Stage2Result)> = firsts
@@ -919,6 +941,32 @@ mod tests {
         assert_corners_within(&found[0], &NEEDLE_TRUTH, 2.5);
         detector.options.edge_fits = false;
         assert!(detector.detect_with(&image, None).0.is_empty());
+    }
+
+    #[test]
+    fn dark_blobs_cost_no_stage_2_pass_once_checked() {
+        let family = crate::builtin::get("apriltag-36h11").unwrap().unwrap();
+        // Dark squares on light ground: a marker's outline with nothing light inside.
+        let mut image = GrayImage::new(320, 240, 200);
+        for (x0, y0, side) in [(20, 30, 48), (120, 60, 64), (220, 120, 80)] {
+            for y in y0..y0 + side {
+                for x in x0..x0 + side {
+                    image.pixels[(y * 320 + x) as usize] = 25;
+                }
+            }
+        }
+        let mut detector = Detector::shipped(vec![family]).unwrap();
+        let (found, checked) = detector.detect(&image);
+        assert!(found.is_empty());
+        detector.readers[0].precheck = None;
+        let (found, unchecked) = detector.detect(&image);
+        assert!(found.is_empty());
+        assert!(
+            checked.reads < unchecked.reads,
+            "{} stage-2 passes with the check, {} without",
+            checked.reads,
+            unchecked.reads
+        );
     }
 
     #[test]
