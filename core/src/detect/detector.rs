@@ -473,6 +473,13 @@ impl Detector {
                 .enumerate()
                 .with_max_len(1)
                 .filter_map(|(i, proposal)| {
+                    // The frame fit scores hundreds of quads per ROI; one with no light inside
+                    // has no cells to read.
+                    if let Some(check) = &reader.precheck {
+                        if !check.has_light_inside(image, &proposal.corners) {
+                            return None;
+                        }
+                    }
                     let cell_read = match cells.read_or_frame(
                         &reader.family,
                         image,
