@@ -7,7 +7,6 @@ pub mod cells;
 mod detection;
 #[cfg(feature = "detect")]
 pub mod detector;
-#[cfg(feature = "detect")]
 pub mod precheck;
 pub mod refine;
 mod report;
