@@ -233,6 +233,24 @@ mod tests {
     }
 
     #[test]
+    fn built_in_families_framed_in_black_on_white_are_checked() {
+        let checked: Vec<&str> = crate::builtin::names()
+            .filter(|n| PreCheck::new(&builtin(n).unwrap()).is_some())
+            .collect();
+        for name in [
+            "apriltag-16h5",
+            "apriltag-36h11",
+            "apriltag-xo-36h11",
+            "aruco-4x4_50",
+            "aruco-6x6_250",
+        ] {
+            assert!(checked.contains(&name), "{name} is not checked");
+        }
+        // Ring families have no square ROI on a frame.
+        assert!(!checked.contains(&"runetag"));
+    }
+
+    #[test]
     fn a_family_whose_roi_sits_on_no_frame_is_not_checked() {
         // TopoTag-like: a ground of one category, no frame step at the ROI's rim.
         let family = builtin("topotag-like").unwrap();
