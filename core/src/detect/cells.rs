@@ -401,7 +401,7 @@ fn sample(image: &GrayImage, [x, y]: [f64; 2]) -> Option<f64> {
 /// The homography taking the unit square's corners (0,0), (1,0), (1,1), (0,1) to `quad`'s, in
 /// closed form (Heckbert 1989): the fit evaluates hundreds of quads per ROI, and a DLT's SVD
 /// for each cost more than the sampling. `None` for a degenerate quad.
-fn square_to_quad(quad: &[[f64; 2]; 4]) -> Option<nalgebra::Matrix3<f64>> {
+pub(super) fn square_to_quad(quad: &[[f64; 2]; 4]) -> Option<nalgebra::Matrix3<f64>> {
     let [[x0, y0], [x1, y1], [x2, y2], [x3, y3]] = *quad;
     let (dx1, dx2, dx3) = (x1 - x2, x3 - x2, x0 - x1 + x2 - x3);
     let (dy1, dy2, dy3) = (y1 - y2, y3 - y2, y0 - y1 + y2 - y3);
@@ -440,7 +440,7 @@ fn fit_line(pairs: &[(f64, f64)]) -> Option<(f64, f64)> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
 
     fn family(name: &str) -> Family {
@@ -457,9 +457,11 @@ mod tests {
     /// A 36h11 marker (ID 111) 80 cm away at 60°, 13 px across (`tagsmith eval generate
     /// apriltag-36h11 --seed 13`, image 76, cut at x 690–790, y 200–260), and the quad traced
     /// around it, 1–2 px off at every corner: stage 2 reads nothing from that quad.
-    const SLIVER: &[u8] = include_bytes!("testdata/sliver-80cm-60deg.png");
-    const SLIVER_TRUTH: [[f64; 2]; 4] = [[31.5, 22.5], [75.7, 27.9], [65.6, 35.4], [19.1, 29.5]];
-    const SLIVER_TRACED: [[f64; 2]; 4] = [[31.8, 21.8], [73.8, 29.5], [67.7, 33.6], [18.8, 30.1]];
+    pub(in crate::detect) const SLIVER: &[u8] = include_bytes!("testdata/sliver-80cm-60deg.png");
+    pub(in crate::detect) const SLIVER_TRUTH: [[f64; 2]; 4] =
+        [[31.5, 22.5], [75.7, 27.9], [65.6, 35.4], [19.1, 29.5]];
+    pub(in crate::detect) const SLIVER_TRACED: [[f64; 2]; 4] =
+        [[31.8, 21.8], [73.8, 29.5], [67.7, 33.6], [18.8, 30.1]];
 
     #[test]
     fn a_sliver_traced_a_pixel_or_two_off_is_fitted_to_its_frame_and_read() {
@@ -486,14 +488,15 @@ mod tests {
     /// A 36h11 marker (ID 328) 70 cm away at 70°, 8 px across and 55 px long (`tagsmith eval
     /// generate apriltag-36h11 --seed 18`, image 68, cut at x 760–880, y 310–375), and the quad
     /// traced around it, 2.4 px off along its length.
-    const FLAT_SLIVER: &[u8] = include_bytes!("testdata/sliver-70cm-70deg.png");
-    const FLAT_SLIVER_TRUTH: [[f64; 2]; 4] = [
+    pub(in crate::detect) const FLAT_SLIVER: &[u8] =
+        include_bytes!("testdata/sliver-70cm-70deg.png");
+    pub(in crate::detect) const FLAT_SLIVER_TRUTH: [[f64; 2]; 4] = [
         [27.10, 27.94],
         [78.68, 29.27],
         [85.02, 37.44],
         [29.67, 35.92],
     ];
-    const FLAT_SLIVER_TRACED: [[f64; 2]; 4] = [
+    pub(in crate::detect) const FLAT_SLIVER_TRACED: [[f64; 2]; 4] = [
         [26.60, 28.68],
         [78.41, 29.69],
         [83.64, 35.42],
