@@ -27,8 +27,9 @@ pub struct FamilyReader {
     pub side_m: f64,
     /// Reads cells straight off the image where stage 2 reads nothing (flat-celled families).
     pub cells: Option<CellReader>,
-    /// Turns away the image searches' quads that cannot frame one of the family's markers
-    /// before they cost a stage-2 pass (families whose ROI sits on a contrasting frame).
+    /// Turns away the traced searches' quads that cannot frame one of the family's markers
+    /// before they cost a stage-2 pass or a frame fit (families whose ROI sits on a dark frame
+    /// on lighter surroundings).
     pub precheck: Option<PreCheck>,
 }
 

@@ -11,6 +11,7 @@
 
 use super::cells::square_to_quad;
 use crate::family::Family;
+use crate::geometry::Homography;
 use crate::image::GrayImage;
 use crate::render::readback::Reader;
 use crate::render::template::{rectified_template, template_corners};
@@ -133,9 +134,10 @@ impl QuadSample {
     /// quad or one whose surroundings reach past its horizon (a view so steep that the grid
     /// would fold back).
     pub fn of(image: &GrayImage, corners: &[[f64; 2]; 4]) -> Option<Self> {
-        let h = square_to_quad(corners)?;
+        let to_image = Homography(square_to_quad(corners)?);
         let n = 2 * OUTSIDE_RINGS + (1.0 / STEP).round() as usize;
         let unit = |i: usize| (i as f64 - OUTSIDE_RINGS as f64) * STEP;
+        let h = &to_image.0;
         let w = |u: f64, v: f64| h[(2, 0)] * u + h[(2, 1)] * v + h[(2, 2)];
         // w is affine in (u, v): positive at the grid's four corners, positive all over.
         let (lo, hi) = (unit(0), unit(n));
@@ -159,10 +161,7 @@ impl QuadSample {
                 } else {
                     continue;
                 };
-                let (u, v) = (unit(i), unit(j));
-                let wuv = w(u, v);
-                let x = (h[(0, 0)] * u + h[(0, 1)] * v + h[(0, 2)]) / wuv;
-                let y = (h[(1, 0)] * u + h[(1, 1)] * v + h[(1, 2)]) / wuv;
+                let [x, y] = to_image.apply([unit(i), unit(j)]);
                 samples.push(image.sample(x as f32, y as f32) as f64);
             }
         }
