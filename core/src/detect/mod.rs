@@ -7,6 +7,8 @@ pub mod cells;
 mod detection;
 #[cfg(feature = "detect")]
 pub mod detector;
+#[cfg(feature = "detect")]
+pub mod plain_net;
 pub mod precheck;
 pub mod refine;
 mod report;

@@ -8,12 +8,11 @@
 //! smaller levels is the same work.
 
 use super::group::Maps;
-use super::net::{receptive_radius, Stage1Net};
+use super::net::{receptive_radius, RawMaps};
 use super::pipeline::maps_of;
 use super::STRIDE;
 use crate::detect::stage2::Contrast;
 use crate::image::GrayImage;
-use burn::tensor::Device;
 
 /// Where the largest level is cut: band A is its rows `0..cut + margin`, band B its rows
 /// `cut - margin..`; A's first `cut / STRIDE` map rows and B's rows from `margin / STRIDE` on
@@ -26,12 +25,11 @@ struct Cut {
 
 /// The maps of every level, in order. `contrasts[i]` normalises level `i` (None: its own).
 pub fn pyramid_maps(
-    net: &Stage1Net,
-    device: &Device,
+    net: &dyn RawMaps,
     levels: &[&GrayImage],
     contrasts: &[Option<Contrast>],
 ) -> Vec<Maps> {
-    let one = |i: usize| maps_of_one(net, device, levels[i], contrasts[i]);
+    let one = |i: usize| maps_of_one(net, levels[i], contrasts[i]);
     let largest = (0..levels.len()).max_by_key(|&i| pixels(levels[i]));
     let (Some(largest), true) = (largest, rayon::current_num_threads() >= 2) else {
         return (0..levels.len()).map(one).collect();
@@ -63,7 +61,7 @@ pub fn pyramid_maps(
     let whole = contrasts[largest].unwrap_or_else(|| Contrast::of(levels[largest]));
     let band = |from: usize, to: usize| {
         let image = levels[largest].crop(0, from as u32, width as u32, (to - from) as u32);
-        maps_of_one(net, device, &image, Some(whole))
+        maps_of_one(net, &image, Some(whole))
     };
     let height = levels[largest].height as usize;
     let run = |first: (usize, usize), share: &[usize]| {
@@ -86,13 +84,8 @@ pub fn pyramid_maps(
 }
 
 /// [`maps_of`] for one image.
-fn maps_of_one(
-    net: &Stage1Net,
-    device: &Device,
-    image: &GrayImage,
-    contrast: Option<Contrast>,
-) -> Maps {
-    maps_of(net, device, std::slice::from_ref(image), contrast)
+fn maps_of_one(net: &dyn RawMaps, image: &GrayImage, contrast: Option<Contrast>) -> Maps {
+    maps_of(net, std::slice::from_ref(image), contrast)
         .pop()
         .expect("one image in, one out")
 }
@@ -138,6 +131,7 @@ mod tests {
     use super::super::model_file;
     use super::super::pipeline::{pyramid, SHIPPED_STAGE1};
     use super::*;
+    use burn::tensor::Device;
 
     #[test]
     fn the_cut_balances_the_cores_and_keeps_each_band_worth_running() {
@@ -159,7 +153,7 @@ mod tests {
     fn banded_maps_are_the_whole_levels_maps() {
         let device = Device::flex();
         let (net, _) = model_file::from_bytes(SHIPPED_STAGE1, "shipped", &device).unwrap();
-        let net = net.fold_batch_norms();
+        let net = net.plain();
         // A checkerboard marker-like square across where the cut falls, on a textured ground;
         // odd sizes so the bottom and right edges are padded.
         let (w, h) = (203u32, 417u32);
@@ -184,13 +178,13 @@ mod tests {
         let refs: Vec<&GrayImage> = levels.iter().map(|(l, _)| l).collect();
         let contrasts = vec![Some(Contrast::of(&image)), None, None];
         let whole: Vec<Maps> = (0..refs.len())
-            .map(|i| maps_of_one(&net, &device, refs[i], contrasts[i]))
+            .map(|i| maps_of_one(&net, refs[i], contrasts[i]))
             .collect();
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(2)
             .build()
             .unwrap();
-        let banded = pool.install(|| pyramid_maps(&net, &device, &refs, &contrasts));
+        let banded = pool.install(|| pyramid_maps(&net, &refs, &contrasts));
         assert_eq!(banded.len(), whole.len());
         for (b, w) in banded.iter().zip(&whole) {
             assert_eq!((b.columns, b.rows), (w.columns, w.rows));

@@ -10,6 +10,7 @@
 //! small head at one scale serves markers from 12 px to the whole image (≈ 0.15 GMAC per
 //! 640×480 at width 24). See [`macs`].
 
+use crate::detect::plain_net::PlainNet;
 use crate::detect::stage2::net::{
     batch_norm_unless, fold_batch_norm, folded_blocks, separable_trunk, stem, trunk_blocks,
     SeparableBlock,
@@ -18,7 +19,7 @@ use burn::module::Module;
 use burn::nn::conv::{Conv2d, Conv2dConfig};
 use burn::nn::{BatchNorm, BatchNormConfig};
 use burn::tensor::activation::relu;
-use burn::tensor::{Device, Tensor};
+use burn::tensor::{Device, Tensor, TensorData};
 use serde::{Deserialize, Serialize};
 
 /// Output maps: heat, offset x/y, direction x/y, mask.
@@ -83,6 +84,46 @@ impl Stage1Net {
     }
 }
 
+impl Stage1Net {
+    /// The folded network as plain loops ([`PlainNet`]), which detection runs.
+    pub fn plain(&self) -> PlainNet {
+        let net = self.clone().fold_batch_norms();
+        let mut convs: Vec<(&Conv2d, bool)> = vec![(&net.stem, true)];
+        for block in net.trunk.iter().chain([&net.head]) {
+            convs.extend(block.convs());
+        }
+        convs.push((&net.out, false));
+        PlainNet::from_convs(&convs).expect("the stage-1 network's layers all have plain forms")
+    }
+}
+
+/// What runs the stage-1 network on a batch: burn's layers (training validates the network it
+/// trains) or their plain form (detection).
+pub trait RawMaps: Sync {
+    /// `input`: N × 1 × `height` × `width` normalised pixels → N × [`MAPS`] × height/4 × width/4
+    /// raw maps.
+    fn raw_maps(&self, input: Vec<f32>, n: usize, height: usize, width: usize) -> Vec<f32>;
+}
+
+/// burn's network on its device.
+pub struct OnDevice<'a>(pub &'a Stage1Net, pub &'a Device);
+
+impl RawMaps for OnDevice<'_> {
+    fn raw_maps(&self, input: Vec<f32>, n: usize, height: usize, width: usize) -> Vec<f32> {
+        let x = Tensor::<4>::from_data(TensorData::new(input, [n, 1, height, width]), self.1);
+        (self.0.forward(x).into_data())
+            .convert::<f32>()
+            .try_into_vec::<f32>()
+            .expect("f32 tensor")
+    }
+}
+
+impl RawMaps for PlainNet {
+    fn raw_maps(&self, input: Vec<f32>, n: usize, height: usize, width: usize) -> Vec<f32> {
+        self.forward(&input, n, height, width)
+    }
+}
+
 /// How far from an output cell's centre (in input pixels, along either axis) the input can
 /// change its value: the 3 × 3 stem, the trunk's 3 × 3 depthwise layers at their strides and
 /// dilations, and the head's.
@@ -123,7 +164,8 @@ mod tests {
     use super::super::pipeline::SHIPPED_STAGE1;
     use burn::tensor::{Device, Tensor, TensorData};
 
-    /// Every detection runs the folded network: its maps must be the shipped network's.
+    /// Every detection runs the folded network as plain loops: its maps must be the shipped
+    /// network's.
     #[test]
     fn folded_batch_norms_compute_what_the_shipped_network_does() {
         let device = Device::flex();
@@ -148,17 +190,21 @@ mod tests {
             .into_data()
             .try_to_vec::<f32>()
             .unwrap();
+        let plain = net.plain().forward(&pixels, 1, h, w);
         let after = (net.fold_batch_norms().forward(input()).into_data())
             .try_to_vec::<f32>()
             .unwrap();
         let largest = before.iter().fold(1.0f32, |m, v| m.max(v.abs()));
-        let worst = before
-            .iter()
-            .zip(&after)
-            .fold(0.0f32, |m, (x, y)| m.max((x - y).abs()));
-        assert!(
-            worst <= 1e-4 * largest,
-            "maps differ by {worst} (largest {largest})"
-        );
+        for (name, maps) in [("folded", after), ("plain", plain)] {
+            assert_eq!(maps.len(), before.len(), "{name}");
+            let worst = before
+                .iter()
+                .zip(&maps)
+                .fold(0.0f32, |m, (x, y)| m.max((x - y).abs()));
+            assert!(
+                worst <= 1e-4 * largest,
+                "{name} maps differ by {worst} (largest {largest})"
+            );
+        }
     }
 }

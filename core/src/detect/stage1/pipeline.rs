@@ -9,15 +9,16 @@ use super::group::{
     Candidate, Corner, GroupOptions, Maps, Proposal,
 };
 use super::model_file::{self, Stage1Header};
-use super::net::{NetConfig, Stage1Net, MAPS};
+use super::net::{NetConfig, RawMaps, Stage1Net, MAPS};
 use super::outline::{cross, outline_candidates, OutlineOptions};
 use super::traced::{traced_quads_near, TraceOptions};
 use super::STRIDE;
+use crate::detect::plain_net::PlainNet;
 use crate::detect::stage2::model_file::ModelError;
 use crate::detect::stage2::Contrast;
 use crate::geometry::{distance, inside_polygon, polygon_area};
 use crate::image::GrayImage;
-use burn::tensor::{Device, Tensor, TensorData};
+use burn::tensor::Device;
 use std::path::Path;
 
 /// Stage-1 weights shipped in `assets/models/`: one model for every square family.
@@ -28,10 +29,10 @@ pub const SHIPPED_STAGE1: &[u8] = include_bytes!("../../../../assets/models/squa
 pub const MIN_LEVEL_SIDE: u32 = 96;
 
 pub struct Stage1 {
-    net: Stage1Net,
+    /// The folded network as plain loops: what detection runs.
+    net: PlainNet,
     pub config: NetConfig,
     pub header: Stage1Header,
-    device: Device,
 }
 
 /// How stage 1 looks for markers.
@@ -85,13 +86,13 @@ impl Stage1 {
     pub fn load(path: &Path) -> Result<Self, ModelError> {
         let device = Device::flex();
         let (net, header) = model_file::load(path, &device)?;
-        Ok(Self::new(net, header, device))
+        Ok(Self::new(&net, header))
     }
 
     pub fn from_bytes(bytes: &[u8], name: &str) -> Result<Self, ModelError> {
         let device = Device::flex();
         let (net, header) = model_file::from_bytes(bytes, name, &device)?;
-        Ok(Self::new(net, header, device))
+        Ok(Self::new(&net, header))
     }
 
     /// The stage-1 model shipped in `assets/models/` for every square family.
@@ -99,24 +100,23 @@ impl Stage1 {
         Self::from_bytes(SHIPPED_STAGE1, "shipped stage-1 model")
     }
 
-    pub(crate) fn new(net: Stage1Net, header: Stage1Header, device: Device) -> Self {
+    pub(crate) fn new(net: &Stage1Net, header: Stage1Header) -> Self {
         Self {
-            net: net.fold_batch_norms(),
+            net: net.plain(),
             config: header.net,
             header,
-            device,
         }
     }
 
     /// Marker ROIs in `image`, best first.
     pub fn propose(&self, image: &GrayImage, options: &ProposeOptions) -> Vec<Proposal> {
-        propose_with(&self.net, &self.device, image, options)
+        propose_with(&self.net, image, options)
     }
 
     /// The network on every pyramid level of `image`, for proposals in rounds
     /// ([`Search::proposals`]).
     pub fn search(&self, image: &GrayImage, options: &ProposeOptions) -> Search {
-        search_with(&self.net, &self.device, image, options)
+        search_with(&self.net, image, options)
     }
 
     /// The quads the network finds on a second, closer look (none when `options.close_look` is
@@ -187,7 +187,7 @@ impl Stage1 {
         // was trained: a crop of flat background and a faint sliver, normalised by its own
         // contrast, looked like no marker the network knew (dev seed 40 #398: read through the
         // image's contrast, not through the crop's).
-        let maps = maps_of(&self.net, &self.device, &levels, Some(search.contrast));
+        let maps = maps_of(&self.net, &levels, Some(search.contrast));
         for ([x0, y0], maps) in boxes.into_iter().zip(maps) {
             let corners = maps.corners(options.group.corner, 0.5);
             let mask = |p: [f64; 2]| maps.mask_at(p, 0.5);
@@ -483,12 +483,7 @@ fn grown(quads: &[[[f64; 2]; 4]]) -> Vec<[[f64; 2]; 4]> {
 }
 
 /// [`Stage1::search`] with a given network.
-pub fn search_with(
-    net: &Stage1Net,
-    device: &Device,
-    image: &GrayImage,
-    options: &ProposeOptions,
-) -> Search {
+pub fn search_with(net: &dyn RawMaps, image: &GrayImage, options: &ProposeOptions) -> Search {
     let mut levels = pyramid(image, options.levels);
     if options.upsample {
         levels.insert(0, (double(image), 0.5));
@@ -501,7 +496,7 @@ pub fn search_with(
     let contrasts: Vec<Option<Contrast>> = (levels.iter())
         .map(|(_, scale)| (*scale == 1.0).then_some(contrast))
         .collect();
-    let level_maps = super::bands::pyramid_maps(net, device, &level_images, &contrasts)
+    let level_maps = super::bands::pyramid_maps(net, &level_images, &contrasts)
         .into_iter()
         .zip(levels.iter().map(|(_, scale)| *scale));
     let levels = level_maps
@@ -542,12 +537,11 @@ pub fn search_with(
 
 /// [`Stage1::propose`] with a given network (training validates with the one it trains).
 pub fn propose_with(
-    net: &Stage1Net,
-    device: &Device,
+    net: &dyn RawMaps,
     image: &GrayImage,
     options: &ProposeOptions,
 ) -> Vec<Proposal> {
-    search_with(net, device, image, options).proposals(&[], &[])
+    search_with(net, image, options).proposals(&[], &[])
 }
 
 /// The image and its halvings, each with its scale (image pixels per level pixel).
@@ -654,20 +648,9 @@ pub fn maps_from_raw(raw: &[f32], n: usize, columns: usize, rows: usize) -> Vec<
 
 /// Runs `net` on same-sized images.
 /// With `contrast`, every image is normalised by it instead of its own ([`input_of`]).
-pub fn maps_of(
-    net: &Stage1Net,
-    device: &Device,
-    images: &[GrayImage],
-    contrast: Option<Contrast>,
-) -> Vec<Maps> {
+pub fn maps_of(net: &dyn RawMaps, images: &[GrayImage], contrast: Option<Contrast>) -> Vec<Maps> {
     let (data, pw, ph) = input_of(images, contrast);
-    let x = Tensor::<4>::from_data(TensorData::new(data, [images.len(), 1, ph, pw]), device);
-    let raw = net
-        .forward(x)
-        .into_data()
-        .convert::<f32>()
-        .try_into_vec::<f32>()
-        .expect("f32 tensor");
+    let raw = net.raw_maps(data, images.len(), ph, pw);
     maps_from_raw(&raw, images.len(), pw / STRIDE, ph / STRIDE)
 }
 

@@ -150,6 +150,11 @@ impl SeparableBlock {
         ))
     }
 
+    /// The two convolutions, each followed by a ReLU (with the batch norms, only once folded).
+    pub(crate) fn convs(&self) -> [(&Conv2d, bool); 2] {
+        [(&self.depthwise, true), (&self.pointwise, true)]
+    }
+
     pub(crate) fn fold_batch_norms(mut self) -> Self {
         if !self.folded {
             fold_batch_norm(&mut self.depthwise, &self.bn1);

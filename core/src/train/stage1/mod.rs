@@ -189,12 +189,11 @@ impl TrainStage for RoiStage {
     }
 
     fn validate(&self, net: &Stage1Net, set: &[SceneSample]) -> Metrics {
-        let net = net.valid();
-        let device = Device::flex();
+        let net = net.valid().plain();
         let options = ProposeOptions::default();
         let proposals: Vec<_> = set
             .iter()
-            .map(|s| propose_with(&net, &device, &s.image, &options))
+            .map(|s| propose_with(&net, &s.image, &options))
             .collect();
         validate::score(set, &proposals)
     }
@@ -210,7 +209,7 @@ impl TrainStage for RoiStage {
     fn picture(&self, sample: &SceneSample, net: Option<&Stage1Net>) -> Picture {
         let outlines = match net {
             None => sample.quads.clone(),
-            Some(net) => propose_with(net, &Device::flex(), &sample.image, &Default::default())
+            Some(net) => propose_with(&net.plain(), &sample.image, &Default::default())
                 .into_iter()
                 .map(|p| p.corners)
                 .collect(),

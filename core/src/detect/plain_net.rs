@@ -1,0 +1,620 @@
+//! The detector's folded networks run by plain loops, for inference. Both networks are chains of
+//! 3 × 3 convolutions that read one input channel per output channel (the stem, the depthwise
+//! layers) and 1 × 1 convolutions (the pointwise layers, the heads), each followed by a bias and
+//! mostly a ReLU. burn's CPU backend runs each of those as its own pass over the activation —
+//! convolution into a zeroed buffer, bias, ReLU — and its depthwise kernel was 40 % of the
+//! stage-1 network's samples on the 640×480 speed set; here each layer is one pass that keeps
+//! its rows or pixel tiles in the L1 cache and adds the bias and ReLU on the way out
+//! (BENCHMARKS.md: "the networks by plain loops"). Training keeps burn's layers; a
+//! [`PlainNet`] is built from them once their batch norms are folded, and computes the same
+//! function up to the order of the float additions.
+
+use burn::nn::conv::Conv2d;
+use burn::nn::PaddingConfig2d;
+
+/// Floats of a thread's buffers kept between forward passes (64 MB): the activations of a
+/// 1280×960 image's levels fit, so a stream of images allocates and zeroes nothing; a larger
+/// image's are freed after it.
+const KEPT_WORKSPACE: usize = 16 << 20;
+
+thread_local! {
+    /// The two activations a layer reads and writes, and the padded input planes.
+    static WORKSPACE: std::cell::RefCell<[Vec<f32>; 3]> = const {
+        std::cell::RefCell::new([Vec::new(), Vec::new(), Vec::new()])
+    };
+}
+
+/// A chain of layers on one image's planes (C × H × W, row-major).
+#[derive(Debug, Clone)]
+pub struct PlainNet {
+    layers: Vec<Layer>,
+}
+
+#[derive(Debug, Clone)]
+enum Layer {
+    /// 3 × 3, zero padding of one dilation: output channel `o` reads input channel
+    /// `o / (outputs / inputs)` (a depthwise layer reads its own; the stem, one input, all).
+    Spatial {
+        inputs: usize,
+        outputs: usize,
+        stride: usize,
+        dilation: usize,
+        /// `outputs` × 9, row by row.
+        weights: Vec<f32>,
+        bias: Vec<f32>,
+        relu: bool,
+    },
+    /// 1 × 1 over all input channels.
+    Pointwise {
+        inputs: usize,
+        outputs: usize,
+        /// `inputs` × `outputs` (transposed from burn's), so that a block of output channels
+        /// finds its weights for one input side by side.
+        weights: Vec<f32>,
+        bias: Vec<f32>,
+        relu: bool,
+    },
+}
+
+/// Why a burn convolution has no plain counterpart.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("layer {layer}: {what}")]
+pub struct Unsupported {
+    pub layer: usize,
+    pub what: String,
+}
+
+impl PlainNet {
+    /// The chain of `convs` (each with whether a ReLU follows it). Every convolution must be a
+    /// 3 × 3 one reading one input channel per output channel, padded by its dilation, or a
+    /// 1 × 1 one over all channels with stride 1.
+    pub fn from_convs(convs: &[(&Conv2d, bool)]) -> Result<Self, Unsupported> {
+        let layers = convs
+            .iter()
+            .enumerate()
+            .map(|(i, &(conv, relu))| {
+                Layer::of(conv, relu).map_err(|what| Unsupported { layer: i, what })
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        for (i, pair) in layers.windows(2).enumerate() {
+            if pair[0].outputs() != pair[1].inputs() {
+                return Err(Unsupported {
+                    layer: i + 1,
+                    what: format!(
+                        "{} input channels after {} output channels",
+                        pair[1].inputs(),
+                        pair[0].outputs()
+                    ),
+                });
+            }
+        }
+        Ok(Self { layers })
+    }
+
+    pub fn input_channels(&self) -> usize {
+        self.layers.first().map_or(0, Layer::inputs)
+    }
+
+    pub fn output_channels(&self) -> usize {
+        self.layers.last().map_or(0, Layer::outputs)
+    }
+
+    /// The output's height and width for an input of `height` × `width`.
+    pub fn output_size(&self, height: usize, width: usize) -> (usize, usize) {
+        (self.layers.iter()).fold((height, width), |(h, w), layer| layer.output_size(h, w))
+    }
+
+    /// `input`: N images of [`Self::input_channels`] × `height` × `width` → N ×
+    /// [`Self::output_channels`] × [`Self::output_size`].
+    pub fn forward(&self, input: &[f32], n: usize, height: usize, width: usize) -> Vec<f32> {
+        let per_image = self.input_channels() * height * width;
+        assert_eq!(input.len(), n * per_image, "input of {n} images");
+        let (oh, ow) = self.output_size(height, width);
+        let mut out = Vec::with_capacity(n * self.output_channels() * oh * ow);
+        // Two buffers, each as large as the largest activation, that the layers write in turn.
+        let mut largest = per_image;
+        let (mut h, mut w) = (height, width);
+        for layer in &self.layers {
+            (h, w) = layer.output_size(h, w);
+            largest = largest.max(layer.outputs() * h * w);
+        }
+        WORKSPACE.with_borrow_mut(|workspace| {
+            for buffer in &mut workspace[..2] {
+                if buffer.len() < largest {
+                    buffer.resize(largest, 0.0);
+                }
+            }
+            let size = (height, width);
+            #[cfg(target_arch = "x86_64")]
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                // SAFETY: the CPU has the features the function is compiled for.
+                unsafe { self.images_avx512(input, n, size, workspace, &mut out) };
+            } else if std::arch::is_x86_feature_detected!("avx2")
+                && std::arch::is_x86_feature_detected!("fma")
+            {
+                // SAFETY: the CPU has both features the function is compiled for.
+                unsafe { self.images_avx2(input, n, size, workspace, &mut out) };
+            } else {
+                self.images::<false>(input, n, size, workspace, &mut out);
+            }
+            #[cfg(not(target_arch = "x86_64"))]
+            self.images::<false>(input, n, size, workspace, &mut out);
+            // A huge image's buffers are not kept for the next one.
+            for buffer in workspace.iter_mut() {
+                if buffer.len() > KEPT_WORKSPACE {
+                    *buffer = Vec::new();
+                }
+            }
+        });
+        out
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn images_avx2(
+        &self,
+        input: &[f32],
+        n: usize,
+        size: (usize, usize),
+        workspace: &mut [Vec<f32>; 3],
+        out: &mut Vec<f32>,
+    ) {
+        self.images::<true>(input, n, size, workspace, out)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx2,fma")]
+    unsafe fn images_avx512(
+        &self,
+        input: &[f32],
+        n: usize,
+        size: (usize, usize),
+        workspace: &mut [Vec<f32>; 3],
+        out: &mut Vec<f32>,
+    ) {
+        self.images::<true>(input, n, size, workspace, out)
+    }
+
+    /// The layers on each of `n` images into `out`. `FMA`: multiply-adds as fused instructions
+    /// (only where the CPU has them: without, a fused multiply-add is a call into the maths
+    /// library).
+    #[inline(always)]
+    fn images<const FMA: bool>(
+        &self,
+        input: &[f32],
+        n: usize,
+        (height, width): (usize, usize),
+        [from, to, scratch]: &mut [Vec<f32>; 3],
+        out: &mut Vec<f32>,
+    ) {
+        let per_image = self.input_channels() * height * width;
+        for image in input.chunks_exact(per_image.max(1)).take(n) {
+            from[..per_image].copy_from_slice(image);
+            let (mut h, mut w) = (height, width);
+            for layer in &self.layers {
+                let (lh, lw) = layer.output_size(h, w);
+                let (src, dst) = (
+                    &from[..layer.inputs() * h * w],
+                    &mut to[..layer.outputs() * lh * lw],
+                );
+                match layer {
+                    Layer::Spatial { .. } => spatial::<FMA>(layer, src, h, w, dst, scratch),
+                    Layer::Pointwise { .. } => pointwise::<FMA>(layer, src, h * w, dst),
+                }
+                std::mem::swap(from, to);
+                (h, w) = (lh, lw);
+            }
+            out.extend_from_slice(&from[..self.output_channels() * h * w]);
+        }
+    }
+}
+
+impl Layer {
+    fn of(conv: &Conv2d, relu: bool) -> Result<Self, String> {
+        let weights = conv.weight.val();
+        let [outputs, per_group, kh, kw] = weights.dims();
+        let inputs = per_group * conv.groups;
+        let weights: Vec<f32> = weights
+            .into_data()
+            .convert::<f32>()
+            .try_into_vec::<f32>()
+            .map_err(|e| format!("weights: {e:?}"))?;
+        let bias = match &conv.bias {
+            Some(b) => b
+                .val()
+                .into_data()
+                .convert::<f32>()
+                .try_into_vec::<f32>()
+                .map_err(|e| format!("bias: {e:?}"))?,
+            None => vec![0.0; outputs],
+        };
+        match [kh, kw] {
+            [3, 3] => {
+                let [s, s2] = conv.stride;
+                let [d, d2] = conv.dilation;
+                if s != s2 || d != d2 || s == 0 || d == 0 {
+                    return Err(format!(
+                        "stride {:?}, dilation {:?}",
+                        conv.stride, conv.dilation
+                    ));
+                }
+                if conv.padding != PaddingConfig2d::Explicit(d, d, d, d) {
+                    return Err(format!("padding {:?} (needs {d} all round)", conv.padding));
+                }
+                if per_group != 1 || !outputs.is_multiple_of(inputs) {
+                    return Err(format!(
+                        "{inputs} inputs to {outputs} outputs in {} groups: not one input per output",
+                        conv.groups
+                    ));
+                }
+                Ok(Layer::Spatial {
+                    inputs,
+                    outputs,
+                    stride: s,
+                    dilation: d,
+                    weights,
+                    bias,
+                    relu,
+                })
+            }
+            [1, 1] => {
+                if conv.groups != 1 || conv.stride != [1, 1] {
+                    return Err(format!(
+                        "1 × 1 in {} groups, stride {:?}",
+                        conv.groups, conv.stride
+                    ));
+                }
+                let weights = (0..inputs * outputs)
+                    .map(|k| weights[(k % outputs) * inputs + k / outputs])
+                    .collect();
+                Ok(Layer::Pointwise {
+                    inputs,
+                    outputs,
+                    weights,
+                    bias,
+                    relu,
+                })
+            }
+            k => Err(format!("kernel {k:?}")),
+        }
+    }
+
+    fn inputs(&self) -> usize {
+        match self {
+            Layer::Spatial { inputs, .. } | Layer::Pointwise { inputs, .. } => *inputs,
+        }
+    }
+
+    fn output_size(&self, h: usize, w: usize) -> (usize, usize) {
+        match self {
+            Layer::Spatial { stride, .. } => (out_side(h, *stride), out_side(w, *stride)),
+            Layer::Pointwise { .. } => (h, w),
+        }
+    }
+
+    fn outputs(&self) -> usize {
+        match self {
+            Layer::Spatial { outputs, .. } | Layer::Pointwise { outputs, .. } => *outputs,
+        }
+    }
+}
+
+/// A side after a 3 × 3 convolution padded by its dilation.
+fn out_side(side: usize, stride: usize) -> usize {
+    if side == 0 {
+        0
+    } else {
+        (side - 1) / stride + 1
+    }
+}
+
+#[inline(always)]
+fn madd<const FMA: bool>(a: f32, b: f32, c: f32) -> f32 {
+    if FMA {
+        a.mul_add(b, c)
+    } else {
+        a * b + c
+    }
+}
+
+/// Output pixels per block of a row: two AVX registers, summed over all taps before stored.
+const LANES: usize = 16;
+
+/// A [`Layer::Spatial`] on `planes` (inputs × h × w) into `out` (outputs × oh × ow).
+#[inline(always)]
+fn spatial<const FMA: bool>(
+    layer: &Layer,
+    planes: &[f32],
+    h: usize,
+    w: usize,
+    out: &mut [f32],
+    scratch: &mut Vec<f32>,
+) {
+    let Layer::Spatial {
+        inputs,
+        outputs,
+        stride,
+        dilation,
+        weights,
+        bias,
+        relu,
+    } = layer
+    else {
+        unreachable!("a spatial layer")
+    };
+    let (s, d) = (*stride, *dilation);
+    let (oh, ow) = (out_side(h, s), out_side(w, s));
+    let per_input = outputs / inputs;
+    // Each input plane zero-padded by the dilation and its columns split by their remainder
+    // modulo the stride (phase p holds padded columns p, p + s, …): every tap of an output row
+    // is then one contiguous run of one phase's row.
+    let (ph, pw) = (h + 2 * d, w + 2 * d);
+    let len = pw.div_ceil(s);
+    scratch.resize(s * ph * len, 0.0);
+    for c in 0..*inputs {
+        let plane = &planes[c * h * w..(c + 1) * h * w];
+        for p in 0..s {
+            for py in 0..ph {
+                let row = &mut scratch[(p * ph + py) * len..(p * ph + py + 1) * len];
+                if py < d || py >= d + h {
+                    row.fill(0.0);
+                    continue;
+                }
+                let src = &plane[(py - d) * w..(py - d + 1) * w];
+                // Padded columns d..d + w hold the row; in phase p they are j = (d − p) / s
+                // rounded up, every s-th column of the row from its (p + j s − d)-th.
+                let first = (d.saturating_sub(p)).div_ceil(s);
+                let skip = p + first * s - d;
+                let count = if skip < w { (w - skip).div_ceil(s) } else { 0 };
+                row[..first].fill(0.0);
+                if s == 1 {
+                    row[first..first + count].copy_from_slice(&src[skip..skip + count]);
+                } else {
+                    for (v, &x) in row[first..first + count]
+                        .iter_mut()
+                        .zip(src[skip..].iter().step_by(s))
+                    {
+                        *v = x;
+                    }
+                }
+                row[first + count..].fill(0.0);
+            }
+        }
+        let scratch = &scratch[..];
+        for o in c * per_input..(c + 1) * per_input {
+            let k: &[f32; 9] = weights[o * 9..o * 9 + 9].try_into().expect("9 taps");
+            for oy in 0..oh {
+                let taps: [&[f32]; 9] = std::array::from_fn(|t| {
+                    let (ky, kx) = (t / 3, t % 3);
+                    let py = oy * s + ky * d;
+                    let col = kx * d;
+                    let (p, j) = (col % s, col / s);
+                    let start = (p * ph + py) * len + j;
+                    &scratch[start..start + ow]
+                });
+                let dst = &mut out[(o * oh + oy) * ow..(o * oh + oy + 1) * ow];
+                let mut x = 0;
+                while x + LANES <= ow {
+                    let mut acc = [bias[o]; LANES];
+                    for (tap, &wt) in taps.iter().zip(k) {
+                        let src: &[f32; LANES] = tap[x..x + LANES].try_into().expect("a block");
+                        for (a, &v) in acc.iter_mut().zip(src) {
+                            *a = madd::<FMA>(wt, v, *a);
+                        }
+                    }
+                    store(&mut dst[x..x + LANES], &acc, *relu);
+                    x += LANES;
+                }
+                for x in x..ow {
+                    let mut acc = bias[o];
+                    for (tap, &wt) in taps.iter().zip(k) {
+                        acc = madd::<FMA>(wt, tap[x], acc);
+                    }
+                    dst[x] = if *relu { acc.max(0.0) } else { acc };
+                }
+            }
+        }
+    }
+}
+
+#[inline(always)]
+fn store(dst: &mut [f32], acc: &[f32], relu: bool) {
+    if relu {
+        for (d, &a) in dst.iter_mut().zip(acc) {
+            *d = a.max(0.0);
+        }
+    } else {
+        dst.copy_from_slice(acc);
+    }
+}
+
+/// Output channels summed together in [`pointwise`]: with [`LANES`] pixels each, eight
+/// AVX registers of sums that every input load feeds four times.
+const OUTPUT_BLOCK: usize = 4;
+
+/// A [`Layer::Pointwise`] on `planes` (inputs × `pixels`) into `out` (outputs × `pixels`).
+#[inline(always)]
+fn pointwise<const FMA: bool>(layer: &Layer, planes: &[f32], pixels: usize, out: &mut [f32]) {
+    let Layer::Pointwise {
+        inputs,
+        outputs,
+        weights,
+        bias,
+        relu,
+    } = layer
+    else {
+        unreachable!("a pointwise layer")
+    };
+    let (inputs, outputs) = (*inputs, *outputs);
+    let mut start = 0;
+    while start + LANES <= pixels {
+        let mut o = 0;
+        while o + OUTPUT_BLOCK <= outputs {
+            pointwise_block::<FMA, OUTPUT_BLOCK>(
+                planes, pixels, start, o, outputs, weights, bias, *relu, out,
+            );
+            o += OUTPUT_BLOCK;
+        }
+        for o in o..outputs {
+            pointwise_block::<FMA, 1>(planes, pixels, start, o, outputs, weights, bias, *relu, out);
+        }
+        start += LANES;
+    }
+    for x in start..pixels {
+        for o in 0..outputs {
+            let mut acc = bias[o];
+            for i in 0..inputs {
+                acc = madd::<FMA>(weights[i * outputs + o], planes[i * pixels + x], acc);
+            }
+            out[o * pixels + x] = if *relu { acc.max(0.0) } else { acc };
+        }
+    }
+}
+
+/// `OUTS` output channels from `first` on, pixels `start..start + LANES`.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn pointwise_block<const FMA: bool, const OUTS: usize>(
+    planes: &[f32],
+    pixels: usize,
+    start: usize,
+    first: usize,
+    outputs: usize,
+    weights: &[f32],
+    bias: &[f32],
+    relu: bool,
+    out: &mut [f32],
+) {
+    let mut acc: [[f32; LANES]; OUTS] = std::array::from_fn(|j| [bias[first + j]; LANES]);
+    for (plane, row) in planes
+        .chunks_exact(pixels)
+        .zip(weights.chunks_exact(outputs))
+    {
+        let src: &[f32; LANES] = plane[start..start + LANES].try_into().expect("a block");
+        let wts: &[f32; OUTS] = row[first..first + OUTS].try_into().expect("a block");
+        for (sums, &wt) in acc.iter_mut().zip(wts) {
+            for (a, &v) in sums.iter_mut().zip(src) {
+                *a = madd::<FMA>(wt, v, *a);
+            }
+        }
+    }
+    for (j, sums) in acc.iter().enumerate() {
+        let o = first + j;
+        store(
+            &mut out[o * pixels + start..o * pixels + start + LANES],
+            sums,
+            relu,
+        );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use burn::nn::conv::Conv2dConfig;
+    use burn::tensor::activation::relu;
+    use burn::tensor::{Device, Distribution, Tensor};
+
+    fn burn_chain(convs: &[(&Conv2d, bool)], x: Tensor<4>) -> Tensor<4> {
+        convs.iter().fold(x, |x, (conv, r)| {
+            let y = conv.forward(x);
+            if *r {
+                relu(y)
+            } else {
+                y
+            }
+        })
+    }
+
+    fn random_bias(conv: &mut Conv2d, device: &Device) {
+        let [outputs, ..] = conv.weight.val().dims();
+        conv.bias = Some(burn::module::Param::from_tensor(Tensor::random(
+            [outputs],
+            Distribution::Normal(0.0, 0.5),
+            device,
+        )));
+    }
+
+    /// Odd sizes, both strides, dilations up to 4, the stem's one input to many outputs, a head
+    /// without ReLU: the plain chain computes burn's.
+    #[test]
+    fn a_chain_of_every_layer_kind_computes_what_burn_does() {
+        let device = Device::flex();
+        let spatial = |cin: usize, cout: usize, s: usize, d: usize| {
+            Conv2dConfig::new([cin, cout], [3, 3])
+                .with_stride([s, s])
+                .with_dilation([d, d])
+                .with_padding(PaddingConfig2d::Explicit(d, d, d, d))
+                .with_groups(cin)
+                .init(&device)
+        };
+        let mut stem = spatial(1, 4, 2, 1);
+        let mut dw1 = spatial(4, 4, 1, 1);
+        let pw1 = Conv2dConfig::new([4, 8], [1, 1])
+            .with_bias(false)
+            .init(&device);
+        let mut dw2 = spatial(8, 8, 2, 1);
+        let mut dw3 = spatial(8, 8, 1, 4);
+        let mut head = Conv2dConfig::new([8, 3], [1, 1]).init(&device);
+        for conv in [&mut stem, &mut dw1, &mut dw2, &mut dw3, &mut head] {
+            random_bias(conv, &device);
+        }
+        let chain = [
+            (&stem, true),
+            (&dw1, true),
+            (&pw1, true),
+            (&dw2, true),
+            (&dw3, true),
+            (&head, false),
+        ];
+        let plain = PlainNet::from_convs(&chain).unwrap();
+        for (n, h, w) in [(2, 37, 29), (1, 8, 8), (1, 5, 3)] {
+            let x: Tensor<4> =
+                Tensor::random([n, 1, h, w], Distribution::Normal(0.0, 1.0), &device);
+            let data = x.to_data().try_to_vec::<f32>().unwrap();
+            let want = burn_chain(&chain, x);
+            let [_, c, oh, ow] = want.dims();
+            assert_eq!(plain.output_size(h, w), (oh, ow), "{h} × {w}");
+            assert_eq!(plain.output_channels(), c);
+            let want = want.into_data().try_to_vec::<f32>().unwrap();
+            let got = plain.forward(&data, n, h, w);
+            assert_eq!(got.len(), want.len());
+            let largest = want.iter().fold(1.0f32, |m, v| m.max(v.abs()));
+            let worst = want
+                .iter()
+                .zip(&got)
+                .fold(0.0f32, |m, (a, b)| m.max((a - b).abs()));
+            assert!(worst <= 1e-5 * largest, "{h} × {w}: off by {worst}");
+        }
+        // The portable path too, where the CPU would have taken the fused one.
+        let x: Tensor<4> = Tensor::random([1, 1, 21, 18], Distribution::Normal(0.0, 1.0), &device);
+        let data = x.to_data().try_to_vec::<f32>().unwrap();
+        let fused = plain.forward(&data, 1, 21, 18);
+        let mut portable = Vec::new();
+        let mut workspace = [vec![0.0; 21 * 18 * 8], vec![0.0; 21 * 18 * 8], Vec::new()];
+        plain.images::<false>(&data, 1, (21, 18), &mut workspace, &mut portable);
+        let worst = fused
+            .iter()
+            .zip(&portable)
+            .fold(0.0f32, |m, (a, b)| m.max((a - b).abs()));
+        assert!(worst < 1e-4, "paths differ by {worst}");
+    }
+
+    #[test]
+    fn layers_it_cannot_run_are_named() {
+        let device = Device::flex();
+        let five = Conv2dConfig::new([2, 2], [5, 5]).init(&device);
+        let err = PlainNet::from_convs(&[(&five, true)]).unwrap_err();
+        assert_eq!(err.layer, 0);
+        assert!(err.what.contains("kernel"), "{err}");
+        let full = Conv2dConfig::new([2, 4], [3, 3])
+            .with_padding(PaddingConfig2d::Explicit(1, 1, 1, 1))
+            .init(&device);
+        let one = Conv2dConfig::new([4, 4], [1, 1]).init(&device);
+        let err = PlainNet::from_convs(&[(&one, true), (&full, true)]).unwrap_err();
+        assert_eq!(err.layer, 1);
+        let three = Conv2dConfig::new([3, 3], [1, 1]).init(&device);
+        let err = PlainNet::from_convs(&[(&one, true), (&three, true)]).unwrap_err();
+        assert!(err.what.contains("input channels"), "{err}");
+    }
+}
