@@ -32,14 +32,16 @@ pub struct PlainNet {
 
 #[derive(Debug, Clone)]
 enum Layer {
-    /// 3 × 3, zero padding of one dilation: output channel `o` reads input channel
-    /// `o / (outputs / inputs)` (a depthwise layer reads its own; the stem, one input, all).
+    /// 3 × 3, zero padding of one dilation, in groups as burn's: each output channel reads
+    /// the input channels of its group (a depthwise layer its own; the stem's one input feeds
+    /// all; a head's every input feeds every output).
     Spatial {
         inputs: usize,
         outputs: usize,
+        groups: usize,
         stride: usize,
         dilation: usize,
-        /// `outputs` × 9, row by row.
+        /// `outputs` × inputs per group × 9, row by row (burn's layout).
         weights: Vec<f32>,
         bias: Vec<f32>,
         relu: bool,
@@ -241,15 +243,13 @@ impl Layer {
                 if conv.padding != PaddingConfig2d::Explicit(d, d, d, d) {
                     return Err(format!("padding {:?} (needs {d} all round)", conv.padding));
                 }
-                if per_group != 1 || !outputs.is_multiple_of(inputs) {
-                    return Err(format!(
-                        "{inputs} inputs to {outputs} outputs in {} groups: not one input per output",
-                        conv.groups
-                    ));
+                if conv.groups == 0 || !outputs.is_multiple_of(conv.groups) {
+                    return Err(format!("{outputs} outputs in {} groups", conv.groups));
                 }
                 Ok(Layer::Spatial {
                     inputs,
                     outputs,
+                    groups: conv.groups,
                     stride: s,
                     dilation: d,
                     weights,
@@ -333,6 +333,7 @@ fn spatial<const FMA: bool>(
     let Layer::Spatial {
         inputs,
         outputs,
+        groups,
         stride,
         dilation,
         weights,
@@ -344,75 +345,97 @@ fn spatial<const FMA: bool>(
     };
     let (s, d) = (*stride, *dilation);
     let (oh, ow) = (out_side(h, s), out_side(w, s));
-    let per_input = outputs / inputs;
-    // Each input plane zero-padded by the dilation and its columns split by their remainder
-    // modulo the stride (phase p holds padded columns p, p + s, …): every tap of an output row
-    // is then one contiguous run of one phase's row.
+    let (group_inputs, group_outputs) = (inputs / groups, outputs / groups);
+    // Each input plane of a group zero-padded by the dilation and its columns split by their
+    // remainder modulo the stride (phase p holds padded columns p, p + s, …): every tap of an
+    // output row is then one contiguous run of one phase's row.
     let (ph, pw) = (h + 2 * d, w + 2 * d);
     let len = pw.div_ceil(s);
-    scratch.resize(s * ph * len, 0.0);
-    for c in 0..*inputs {
-        let plane = &planes[c * h * w..(c + 1) * h * w];
-        for p in 0..s {
-            for py in 0..ph {
-                let row = &mut scratch[(p * ph + py) * len..(p * ph + py + 1) * len];
-                if py < d || py >= d + h {
-                    row.fill(0.0);
-                    continue;
-                }
-                let src = &plane[(py - d) * w..(py - d + 1) * w];
-                // Padded columns d..d + w hold the row; in phase p they are j = (d − p) / s
-                // rounded up, every s-th column of the row from its (p + j s − d)-th.
-                let first = (d.saturating_sub(p)).div_ceil(s);
-                let skip = p + first * s - d;
-                let count = if skip < w { (w - skip).div_ceil(s) } else { 0 };
-                row[..first].fill(0.0);
-                if s == 1 {
-                    row[first..first + count].copy_from_slice(&src[skip..skip + count]);
-                } else {
-                    for (v, &x) in row[first..first + count]
-                        .iter_mut()
-                        .zip(src[skip..].iter().step_by(s))
-                    {
-                        *v = x;
-                    }
-                }
-                row[first + count..].fill(0.0);
-            }
+    let padded = s * ph * len;
+    if scratch.len() < group_inputs * padded {
+        scratch.resize(group_inputs * padded, 0.0);
+    }
+    for g in 0..*groups {
+        for ci in 0..group_inputs {
+            let c = g * group_inputs + ci;
+            let plane = &planes[c * h * w..(c + 1) * h * w];
+            let phases = &mut scratch[ci * padded..(ci + 1) * padded];
+            pad_into_phases(plane, h, w, s, d, phases);
         }
         let scratch = &scratch[..];
-        for o in c * per_input..(c + 1) * per_input {
-            let k: &[f32; 9] = weights[o * 9..o * 9 + 9].try_into().expect("9 taps");
+        for o in g * group_outputs..(g + 1) * group_outputs {
             for oy in 0..oh {
-                let taps: [&[f32]; 9] = std::array::from_fn(|t| {
-                    let (ky, kx) = (t / 3, t % 3);
-                    let py = oy * s + ky * d;
-                    let col = kx * d;
-                    let (p, j) = (col % s, col / s);
-                    let start = (p * ph + py) * len + j;
-                    &scratch[start..start + ow]
-                });
                 let dst = &mut out[(o * oh + oy) * ow..(o * oh + oy + 1) * ow];
-                let mut x = 0;
-                while x + LANES <= ow {
-                    let mut acc = [bias[o]; LANES];
-                    for (tap, &wt) in taps.iter().zip(k) {
-                        let src: &[f32; LANES] = tap[x..x + LANES].try_into().expect("a block");
-                        for (a, &v) in acc.iter_mut().zip(src) {
-                            *a = madd::<FMA>(wt, v, *a);
+                // The row sums its group's inputs one after the other, in `dst` between them.
+                for ci in 0..group_inputs {
+                    let taps: [&[f32]; 9] = std::array::from_fn(|t| {
+                        let (ky, kx) = (t / 3, t % 3);
+                        let (py, col) = (oy * s + ky * d, kx * d);
+                        let (p, j) = (col % s, col / s);
+                        let start = ci * padded + (p * ph + py) * len + j;
+                        &scratch[start..start + ow]
+                    });
+                    let at = (o * group_inputs + ci) * 9;
+                    let k: &[f32; 9] = weights[at..at + 9].try_into().expect("9 taps");
+                    let (first, last) = (ci == 0, ci + 1 == group_inputs);
+                    let mut x = 0;
+                    while x + LANES <= ow {
+                        let block = &mut dst[x..x + LANES];
+                        let mut acc = [bias[o]; LANES];
+                        if !first {
+                            acc.copy_from_slice(block);
                         }
+                        for (tap, &wt) in taps.iter().zip(k) {
+                            let src: &[f32; LANES] = tap[x..x + LANES].try_into().expect("a block");
+                            for (a, &v) in acc.iter_mut().zip(src) {
+                                *a = madd::<FMA>(wt, v, *a);
+                            }
+                        }
+                        store(block, &acc, *relu && last);
+                        x += LANES;
                     }
-                    store(&mut dst[x..x + LANES], &acc, *relu);
-                    x += LANES;
-                }
-                for x in x..ow {
-                    let mut acc = bias[o];
-                    for (tap, &wt) in taps.iter().zip(k) {
-                        acc = madd::<FMA>(wt, tap[x], acc);
+                    for x in x..ow {
+                        let mut acc = if first { bias[o] } else { dst[x] };
+                        for (tap, &wt) in taps.iter().zip(k) {
+                            acc = madd::<FMA>(wt, tap[x], acc);
+                        }
+                        dst[x] = if *relu && last { acc.max(0.0) } else { acc };
                     }
-                    dst[x] = if *relu { acc.max(0.0) } else { acc };
                 }
             }
+        }
+    }
+}
+
+/// `plane` (h × w) zero-padded by `d` all round into `phases` (s phases of (h + 2d) rows of
+/// ⌈(w + 2d) / s⌉ columns; phase p holds the padded columns p, p + s, …).
+#[inline(always)]
+fn pad_into_phases(plane: &[f32], h: usize, w: usize, s: usize, d: usize, phases: &mut [f32]) {
+    let (ph, len) = (h + 2 * d, (w + 2 * d).div_ceil(s));
+    for p in 0..s {
+        for py in 0..ph {
+            let row = &mut phases[(p * ph + py) * len..(p * ph + py + 1) * len];
+            if py < d || py >= d + h {
+                row.fill(0.0);
+                continue;
+            }
+            let src = &plane[(py - d) * w..(py - d + 1) * w];
+            // Padded columns d..d + w hold the row; in phase p they are j = (d − p) / s
+            // rounded up, every s-th column of the row from its (p + j s − d)-th.
+            let first = (d.saturating_sub(p)).div_ceil(s);
+            let skip = p + first * s - d;
+            let count = if skip < w { (w - skip).div_ceil(s) } else { 0 };
+            row[..first].fill(0.0);
+            if s == 1 {
+                row[first..first + count].copy_from_slice(&src[skip..skip + count]);
+            } else {
+                for (v, &x) in
+                    (row[first..first + count].iter_mut()).zip(src[skip..].iter().step_by(s))
+                {
+                    *v = x;
+                }
+            }
+            row[first + count..].fill(0.0);
         }
     }
 }
@@ -535,8 +558,8 @@ mod tests {
         )));
     }
 
-    /// Odd sizes, both strides, dilations up to 4, the stem's one input to many outputs, a head
-    /// without ReLU: the plain chain computes burn's.
+    /// Odd sizes, both strides, dilations up to 4, the stem's one input to many outputs, groups
+    /// of two, a 3 × 3 over all channels, heads without ReLU: the plain chain computes burn's.
     #[test]
     fn a_chain_of_every_layer_kind_computes_what_burn_does() {
         let device = Device::flex();
@@ -555,8 +578,23 @@ mod tests {
             .init(&device);
         let mut dw2 = spatial(8, 8, 2, 1);
         let mut dw3 = spatial(8, 8, 1, 4);
-        let mut head = Conv2dConfig::new([8, 3], [1, 1]).init(&device);
-        for conv in [&mut stem, &mut dw1, &mut dw2, &mut dw3, &mut head] {
+        let mut paired = Conv2dConfig::new([8, 4], [3, 3])
+            .with_padding(PaddingConfig2d::Explicit(1, 1, 1, 1))
+            .with_groups(2)
+            .init(&device);
+        let mut full = Conv2dConfig::new([4, 6], [3, 3])
+            .with_padding(PaddingConfig2d::Explicit(1, 1, 1, 1))
+            .init(&device);
+        let mut head = Conv2dConfig::new([6, 3], [1, 1]).init(&device);
+        for conv in [
+            &mut stem,
+            &mut dw1,
+            &mut dw2,
+            &mut dw3,
+            &mut paired,
+            &mut full,
+            &mut head,
+        ] {
             random_bias(conv, &device);
         }
         let chain = [
@@ -565,6 +603,8 @@ mod tests {
             (&pw1, true),
             (&dw2, true),
             (&dw3, true),
+            (&paired, true),
+            (&full, false),
             (&head, false),
         ];
         let plain = PlainNet::from_convs(&chain).unwrap();
@@ -607,12 +647,11 @@ mod tests {
         let err = PlainNet::from_convs(&[(&five, true)]).unwrap_err();
         assert_eq!(err.layer, 0);
         assert!(err.what.contains("kernel"), "{err}");
-        let full = Conv2dConfig::new([2, 4], [3, 3])
-            .with_padding(PaddingConfig2d::Explicit(1, 1, 1, 1))
-            .init(&device);
+        let unpadded = Conv2dConfig::new([4, 4], [3, 3]).init(&device);
         let one = Conv2dConfig::new([4, 4], [1, 1]).init(&device);
-        let err = PlainNet::from_convs(&[(&one, true), (&full, true)]).unwrap_err();
+        let err = PlainNet::from_convs(&[(&one, true), (&unpadded, true)]).unwrap_err();
         assert_eq!(err.layer, 1);
+        assert!(err.what.contains("padding"), "{err}");
         let three = Conv2dConfig::new([3, 3], [1, 1]).init(&device);
         let err = PlainNet::from_convs(&[(&one, true), (&three, true)]).unwrap_err();
         assert!(err.what.contains("input channels"), "{err}");

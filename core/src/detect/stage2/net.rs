@@ -9,6 +9,8 @@
 //! default: 12.7 k parameters, 10 MMAC per 128² patch) and dilations 2 and 4 give the receptive field (≈ 80 px, seven cells of 36h11) that
 //! the reference gets from depth. See [`macs`] for the arithmetic.
 
+use super::anchors::RawOutputs;
+use crate::detect::plain_net::PlainNet;
 use burn::module::{Module, Param};
 use burn::nn::conv::{Conv2d, Conv2dConfig};
 use burn::nn::{BatchNorm, BatchNormConfig, PaddingConfig2d};
@@ -253,6 +255,32 @@ impl Stage2Net {
         }
     }
 
+    /// The folded network's branches as plain loops ([`PlainStage2`]), which detection runs.
+    pub fn plain(&self) -> PlainStage2 {
+        let net = self.clone().fold_batch_norms();
+        let chain = |convs: &[(&Conv2d, bool)]| {
+            PlainNet::from_convs(convs).expect("the stage-2 network's layers all have plain forms")
+        };
+        let mut trunk = vec![(&net.stem, true)];
+        for block in &net.trunk {
+            trunk.extend(block.convs());
+        }
+        let mut template = Vec::new();
+        for block in &net.template {
+            template.extend(block.convs());
+        }
+        template.push((&net.template_out, false));
+        PlainStage2 {
+            trunk: chain(&trunk),
+            mask: chain(&[(&net.mask, false)]),
+            align: chain(&[(&net.align, true)]),
+            keypoint: chain(&net.keypoint.convs()),
+            classes: chain(&[(&net.classes, false)]),
+            offsets: chain(&[(&net.offsets, false)]),
+            template: chain(&template),
+        }
+    }
+
     /// The network for inference: every batch norm folded into its convolution
     /// ([`fold_batch_norm`]); the same function, without the batch norms' passes.
     pub fn fold_batch_norms(mut self) -> Self {
@@ -292,4 +320,56 @@ pub fn macs(config: &NetConfig) -> u64 {
         cin = w / 2;
     }
     total + conv(side, w / 2, 2, 1, 1)
+}
+
+/// [`Stage2Net::forward`]'s branches as plain chains: the trunk; the mask, concatenated before
+/// the trunk's channels into the alignment layer; from its features the keypoint block with
+/// its class and offset heads, and the template head.
+pub struct PlainStage2 {
+    trunk: PlainNet,
+    mask: PlainNet,
+    align: PlainNet,
+    keypoint: PlainNet,
+    classes: PlainNet,
+    offsets: PlainNet,
+    template: PlainNet,
+}
+
+impl PlainStage2 {
+    /// One normalised `size` × `size` patch → its outputs, class logits softmaxed.
+    pub fn outputs(&self, patch: &[f32], size: usize) -> RawOutputs {
+        let (g, _) = self.trunk.output_size(size, size);
+        let features = self.trunk.forward(patch, 1, size, size);
+        let mut with_mask = self.mask.forward(&features, 1, g, g);
+        with_mask.extend_from_slice(&features);
+        let aligned = self.align.forward(&with_mask, 1, g, g);
+        let keypoint = self.keypoint.forward(&aligned, 1, g, g);
+        let logits = self.classes.forward(&keypoint, 1, g, g);
+        let offsets = self.offsets.forward(&keypoint, 1, g, g);
+        let (tg, _) = self.template.output_size(g, g);
+        let template = self.template.forward(&aligned, 1, g, g);
+        debug_assert_eq!((tg, template.len()), (2, 8), "a 2 × 2 template grid");
+        let anchors = g * g;
+        let classes = self.classes.output_channels();
+        let mut probs = Vec::with_capacity(anchors * classes);
+        for a in 0..anchors {
+            let logit = |c: usize| logits[c * anchors + a];
+            let top = (0..classes).map(logit).fold(f32::NEG_INFINITY, f32::max);
+            let start = probs.len();
+            probs.extend((0..classes).map(|c| (logit(c) - top).exp()));
+            let sum: f32 = probs[start..].iter().sum();
+            probs[start..].iter_mut().for_each(|p| *p /= sum);
+        }
+        // Template planes x then y over the 2 × 2 grid (TL, TR, BL, BR); the outputs run
+        // TL, TR, BR, BL.
+        let at = |flat: usize| [template[flat], template[4 + flat]];
+        RawOutputs {
+            probs,
+            classes,
+            offsets: (0..anchors)
+                .map(|a| [offsets[a], offsets[anchors + a]])
+                .collect(),
+            template: [at(0), at(1), at(3), at(2)],
+        }
+    }
 }

@@ -6,7 +6,7 @@
 use super::anchors::{PatchSpec, RawOutputs};
 use super::decode::read_patch;
 use super::model_file::{self, ModelError, ModelHeader};
-use super::net::{NetConfig, Outputs, Stage2Net};
+use super::net::{NetConfig, Outputs, PlainStage2, Stage2Net};
 use super::normalise_patch;
 use crate::detect::refine::{refine_marker, Lens, RefineMode, RefineReport, TemplateCache};
 use crate::detect::{DetectedKeypoint, Scores};
@@ -15,18 +15,18 @@ use crate::geometry::{warp_bilinear, Camera, Homography};
 use crate::image::GrayImage;
 use crate::pose::{covariance, marker_plane_points, solve_planar, PnpSolution, PointNoise};
 use burn::tensor::activation::softmax;
-use burn::tensor::{Device, Tensor, TensorData};
+use burn::tensor::{Device, Tensor};
 use serde::Serialize;
 use std::path::Path;
 
 /// A loaded model, ready to run on patches and images.
 pub struct Stage2 {
-    net: Stage2Net,
+    /// The folded network as plain loops: what detection runs.
+    net: PlainStage2,
     pub config: NetConfig,
     pub spec: PatchSpec,
     pub header: ModelHeader,
     family: Family,
-    device: Device,
     templates: TemplateCache,
 }
 
@@ -93,27 +93,26 @@ impl Stage2 {
     pub fn load(path: &Path, family: &Family) -> Result<Self, ModelError> {
         let device = Device::flex();
         let (net, header) = model_file::load(path, family, &device)?;
-        Ok(Self::new(net, header, family, device))
+        Ok(Self::new(&net, header, family))
     }
 
     pub fn from_bytes(bytes: &[u8], name: &str, family: &Family) -> Result<Self, ModelError> {
         let device = Device::flex();
         let (net, header) = model_file::from_bytes(bytes, name, family, &device)?;
-        Ok(Self::new(net, header, family, device))
+        Ok(Self::new(&net, header, family))
     }
 
-    fn new(net: Stage2Net, header: ModelHeader, family: &Family, device: Device) -> Self {
+    fn new(net: &Stage2Net, header: ModelHeader, family: &Family) -> Self {
         let spec = PatchSpec {
             size: header.net.patch as u32,
             ..PatchSpec::default()
         };
         Self {
-            net: net.fold_batch_norms(),
+            net: net.plain(),
             config: header.net,
             spec,
             header,
             family: family.clone(),
-            device,
             templates: TemplateCache::default(),
         }
     }
@@ -134,12 +133,9 @@ impl Stage2 {
 
     fn run_batch(&self, patches: &[GrayImage]) -> Vec<RawOutputs> {
         let p = self.spec.size as usize;
-        let pixels: Vec<f32> = patches.iter().flat_map(normalise_patch).collect();
-        let x = Tensor::<4>::from_data(
-            TensorData::new(pixels, [patches.len(), 1, p, p]),
-            &self.device,
-        );
-        raw_outputs(self.net.forward(x), self.config.classes)
+        (patches.iter())
+            .map(|patch| self.net.outputs(&normalise_patch(patch), p))
+            .collect()
     }
 
     /// The patch a ROI (the family's ROI points 0–3 in the image, in order) warps to.

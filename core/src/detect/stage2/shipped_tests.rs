@@ -94,8 +94,8 @@ fn decodes_noisy_markers(name: &str) {
     }
 }
 
-/// Folding the batch norms (what every detection runs) must not change what the shipped
-/// network computes; a folded network written to a model file is refused on loading, not read as
+/// Folding the batch norms and running the folded network as plain loops (what every
+/// detection runs) must not change what the shipped network computes; a folded network written to a model file is refused on loading, not read as
 /// a different function.
 #[test]
 fn folded_batch_norms_compute_what_the_shipped_network_does() {
@@ -126,6 +126,29 @@ fn folded_batch_norms_compute_what_the_shipped_network_does() {
         ]
     };
     let before = outputs(&net);
+    // The plain form (what detection runs) against burn's outputs as the pipeline reads them.
+    let want = super::pipeline::raw_outputs(net.forward(input()), header.net.classes).remove(0);
+    let got = net.plain().outputs(&pixels, p);
+    assert_eq!(got.classes, want.classes);
+    let worst = |a: &[f32], b: &[f32]| {
+        assert_eq!(a.len(), b.len());
+        a.iter()
+            .zip(b)
+            .fold(0.0f32, |m, (x, y)| m.max((x - y).abs()))
+    };
+    let flat2 = |v: &[[f32; 2]]| v.iter().flatten().copied().collect::<Vec<f32>>();
+    assert!(
+        worst(&got.probs, &want.probs) <= 1e-4,
+        "class probabilities"
+    );
+    assert!(
+        worst(&flat2(&got.offsets), &flat2(&want.offsets)) <= 1e-4,
+        "offsets"
+    );
+    assert!(
+        worst(&flat2(&got.template), &flat2(&want.template)) <= 1e-4,
+        "template"
+    );
     let folded = net.fold_batch_norms();
     for (a, b) in before.iter().zip(outputs(&folded)) {
         let largest = a.iter().fold(1.0f32, |m, v| m.max(v.abs()));
