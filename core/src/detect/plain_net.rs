@@ -1,7 +1,7 @@
 //! The detector's folded networks run by plain loops, for inference. Both networks are chains of
-//! 3 × 3 convolutions that read one input channel per output channel (the stem, the depthwise
-//! layers) and 1 × 1 convolutions (the pointwise layers, the heads), each followed by a bias and
-//! mostly a ReLU. burn's CPU backend runs each of those as its own pass over the activation —
+//! 3 × 3 convolutions in burn's groups (the stem, the depthwise layers, stage 2's full class and
+//! offset heads) and 1 × 1 convolutions (the pointwise layers, the other heads), each followed
+//! by a bias and mostly a ReLU. burn's CPU backend runs each of those as its own pass over the activation —
 //! convolution into a zeroed buffer, bias, ReLU — and its depthwise kernel was 40 % of the
 //! stage-1 network's samples on the 640×480 speed set; here each layer is one pass that keeps
 //! its rows or pixel tiles in the L1 cache and adds the bias and ReLU on the way out
@@ -68,8 +68,8 @@ pub struct Unsupported {
 
 impl PlainNet {
     /// The chain of `convs` (each with whether a ReLU follows it). Every convolution must be a
-    /// 3 × 3 one reading one input channel per output channel, padded by its dilation, or a
-    /// 1 × 1 one over all channels with stride 1.
+    /// 3 × 3 one padded by its dilation (any groups, equal strides and dilations along both
+    /// axes) or an unpadded 1 × 1 one over all channels with stride 1.
     pub fn from_convs(convs: &[(&Conv2d, bool)]) -> Result<Self, Unsupported> {
         let layers = convs
             .iter()
@@ -263,6 +263,12 @@ impl Layer {
                         "1 × 1 in {} groups, stride {:?}",
                         conv.groups, conv.stride
                     ));
+                }
+                if !matches!(
+                    conv.padding,
+                    PaddingConfig2d::Valid | PaddingConfig2d::Explicit(0, 0, 0, 0)
+                ) {
+                    return Err(format!("1 × 1 with padding {:?}", conv.padding));
                 }
                 let weights = (0..inputs * outputs)
                     .map(|k| weights[(k % outputs) * inputs + k / outputs])
@@ -608,7 +614,9 @@ mod tests {
             (&head, false),
         ];
         let plain = PlainNet::from_convs(&chain).unwrap();
-        for (n, h, w) in [(2, 37, 29), (1, 8, 8), (1, 5, 3)] {
+        // 70 × 83: the stem's rows are 42 wide (two 16-pixel blocks and a tail), the later
+        // layers' 21 (a block and a tail); the others exercise the tails and tiny planes.
+        for (n, h, w) in [(1, 70, 83), (2, 37, 29), (1, 8, 8), (1, 5, 3)] {
             let x: Tensor<4> =
                 Tensor::random([n, 1, h, w], Distribution::Normal(0.0, 1.0), &device);
             let data = x.to_data().try_to_vec::<f32>().unwrap();
@@ -651,6 +659,11 @@ mod tests {
         let one = Conv2dConfig::new([4, 4], [1, 1]).init(&device);
         let err = PlainNet::from_convs(&[(&one, true), (&unpadded, true)]).unwrap_err();
         assert_eq!(err.layer, 1);
+        assert!(err.what.contains("padding"), "{err}");
+        let padded = Conv2dConfig::new([4, 4], [1, 1])
+            .with_padding(PaddingConfig2d::Explicit(1, 1, 1, 1))
+            .init(&device);
+        let err = PlainNet::from_convs(&[(&padded, true)]).unwrap_err();
         assert!(err.what.contains("padding"), "{err}");
         let three = Conv2dConfig::new([3, 3], [1, 1]).init(&device);
         let err = PlainNet::from_convs(&[(&one, true), (&three, true)]).unwrap_err();

@@ -8,9 +8,10 @@
 //! smaller levels is the same work.
 
 use super::group::Maps;
-use super::net::{receptive_radius, RawMaps};
+use super::net::receptive_radius;
 use super::pipeline::maps_of;
 use super::STRIDE;
+use crate::detect::plain_net::PlainNet;
 use crate::detect::stage2::Contrast;
 use crate::image::GrayImage;
 
@@ -25,7 +26,7 @@ struct Cut {
 
 /// The maps of every level, in order. `contrasts[i]` normalises level `i` (None: its own).
 pub fn pyramid_maps(
-    net: &dyn RawMaps,
+    net: &PlainNet,
     levels: &[&GrayImage],
     contrasts: &[Option<Contrast>],
 ) -> Vec<Maps> {
@@ -84,7 +85,7 @@ pub fn pyramid_maps(
 }
 
 /// [`maps_of`] for one image.
-fn maps_of_one(net: &dyn RawMaps, image: &GrayImage, contrast: Option<Contrast>) -> Maps {
+fn maps_of_one(net: &PlainNet, image: &GrayImage, contrast: Option<Contrast>) -> Maps {
     maps_of(net, std::slice::from_ref(image), contrast)
         .pop()
         .expect("one image in, one out")

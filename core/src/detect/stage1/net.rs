@@ -19,7 +19,7 @@ use burn::module::Module;
 use burn::nn::conv::{Conv2d, Conv2dConfig};
 use burn::nn::{BatchNorm, BatchNormConfig};
 use burn::tensor::activation::relu;
-use burn::tensor::{Device, Tensor, TensorData};
+use burn::tensor::{Device, Tensor};
 use serde::{Deserialize, Serialize};
 
 /// Output maps: heat, offset x/y, direction x/y, mask.
@@ -94,33 +94,6 @@ impl Stage1Net {
         }
         convs.push((&net.out, false));
         PlainNet::from_convs(&convs).expect("the stage-1 network's layers all have plain forms")
-    }
-}
-
-/// What runs the stage-1 network on a batch: burn's layers (training validates the network it
-/// trains) or their plain form (detection).
-pub trait RawMaps: Sync {
-    /// `input`: N × 1 × `height` × `width` normalised pixels → N × [`MAPS`] × height/4 × width/4
-    /// raw maps.
-    fn raw_maps(&self, input: Vec<f32>, n: usize, height: usize, width: usize) -> Vec<f32>;
-}
-
-/// burn's network on its device.
-pub struct OnDevice<'a>(pub &'a Stage1Net, pub &'a Device);
-
-impl RawMaps for OnDevice<'_> {
-    fn raw_maps(&self, input: Vec<f32>, n: usize, height: usize, width: usize) -> Vec<f32> {
-        let x = Tensor::<4>::from_data(TensorData::new(input, [n, 1, height, width]), self.1);
-        (self.0.forward(x).into_data())
-            .convert::<f32>()
-            .try_into_vec::<f32>()
-            .expect("f32 tensor")
-    }
-}
-
-impl RawMaps for PlainNet {
-    fn raw_maps(&self, input: Vec<f32>, n: usize, height: usize, width: usize) -> Vec<f32> {
-        self.forward(&input, n, height, width)
     }
 }
 

@@ -9,7 +9,7 @@ use super::group::{
     Candidate, Corner, GroupOptions, Maps, Proposal,
 };
 use super::model_file::{self, Stage1Header};
-use super::net::{NetConfig, RawMaps, Stage1Net, MAPS};
+use super::net::{NetConfig, Stage1Net, MAPS};
 use super::outline::{cross, outline_candidates, OutlineOptions};
 use super::traced::{traced_quads_near, TraceOptions};
 use super::STRIDE;
@@ -483,7 +483,7 @@ fn grown(quads: &[[[f64; 2]; 4]]) -> Vec<[[f64; 2]; 4]> {
 }
 
 /// [`Stage1::search`] with a given network.
-pub fn search_with(net: &dyn RawMaps, image: &GrayImage, options: &ProposeOptions) -> Search {
+pub fn search_with(net: &PlainNet, image: &GrayImage, options: &ProposeOptions) -> Search {
     let mut levels = pyramid(image, options.levels);
     if options.upsample {
         levels.insert(0, (double(image), 0.5));
@@ -536,11 +536,7 @@ pub fn search_with(net: &dyn RawMaps, image: &GrayImage, options: &ProposeOption
 }
 
 /// [`Stage1::propose`] with a given network (training validates with the one it trains).
-pub fn propose_with(
-    net: &dyn RawMaps,
-    image: &GrayImage,
-    options: &ProposeOptions,
-) -> Vec<Proposal> {
+pub fn propose_with(net: &PlainNet, image: &GrayImage, options: &ProposeOptions) -> Vec<Proposal> {
     search_with(net, image, options).proposals(&[], &[])
 }
 
@@ -648,9 +644,9 @@ pub fn maps_from_raw(raw: &[f32], n: usize, columns: usize, rows: usize) -> Vec<
 
 /// Runs `net` on same-sized images.
 /// With `contrast`, every image is normalised by it instead of its own ([`input_of`]).
-pub fn maps_of(net: &dyn RawMaps, images: &[GrayImage], contrast: Option<Contrast>) -> Vec<Maps> {
+pub fn maps_of(net: &PlainNet, images: &[GrayImage], contrast: Option<Contrast>) -> Vec<Maps> {
     let (data, pw, ph) = input_of(images, contrast);
-    let raw = net.raw_maps(data, images.len(), ph, pw);
+    let raw = net.forward(&data, images.len(), ph, pw);
     maps_from_raw(&raw, images.len(), pw / STRIDE, ph / STRIDE)
 }
 
