@@ -128,10 +128,7 @@ impl PlainNet {
             }
             let size = (height, width);
             #[cfg(target_arch = "x86_64")]
-            if std::arch::is_x86_feature_detected!("avx512f") {
-                // SAFETY: the CPU has the features the function is compiled for.
-                unsafe { self.images_avx512(input, n, size, workspace, &mut out) };
-            } else if std::arch::is_x86_feature_detected!("avx2")
+            if std::arch::is_x86_feature_detected!("avx2")
                 && std::arch::is_x86_feature_detected!("fma")
             {
                 // SAFETY: the CPU has both features the function is compiled for.
@@ -154,19 +151,6 @@ impl PlainNet {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
     unsafe fn images_avx2(
-        &self,
-        input: &[f32],
-        n: usize,
-        size: (usize, usize),
-        workspace: &mut [Vec<f32>; 3],
-        out: &mut Vec<f32>,
-    ) {
-        self.images::<true>(input, n, size, workspace, out)
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f,avx2,fma")]
-    unsafe fn images_avx512(
         &self,
         input: &[f32],
         n: usize,
