@@ -32,30 +32,36 @@ pub struct PlainNet {
 
 #[derive(Debug, Clone)]
 enum Layer {
-    /// 3 × 3, zero padding of one dilation, in groups as burn's: each output channel reads
-    /// the input channels of its group (a depthwise layer its own; the stem's one input feeds
-    /// all; a head's every input feeds every output).
-    Spatial {
-        inputs: usize,
-        outputs: usize,
-        groups: usize,
-        stride: usize,
-        dilation: usize,
-        /// `outputs` × inputs per group × 9, row by row (burn's layout).
-        weights: Vec<f32>,
-        bias: Vec<f32>,
-        relu: bool,
-    },
-    /// 1 × 1 over all input channels.
-    Pointwise {
-        inputs: usize,
-        outputs: usize,
-        /// `inputs` × `outputs` (transposed from burn's), so that a block of output channels
-        /// finds its weights for one input side by side.
-        weights: Vec<f32>,
-        bias: Vec<f32>,
-        relu: bool,
-    },
+    Spatial(Spatial),
+    Pointwise(Pointwise),
+}
+
+/// 3 × 3, zero padding of one dilation, in groups as burn's: each output channel reads the input
+/// channels of its group (a depthwise layer its own; the stem's one input feeds all; a head's
+/// every input feeds every output).
+#[derive(Debug, Clone)]
+struct Spatial {
+    inputs: usize,
+    outputs: usize,
+    groups: usize,
+    stride: usize,
+    dilation: usize,
+    /// `outputs` × inputs per group × 9, row by row (burn's layout).
+    weights: Vec<f32>,
+    bias: Vec<f32>,
+    relu: bool,
+}
+
+/// 1 × 1 over all input channels.
+#[derive(Debug, Clone)]
+struct Pointwise {
+    inputs: usize,
+    outputs: usize,
+    /// `inputs` × `outputs` (transposed from burn's), so that a block of output channels finds
+    /// its weights for one input side by side.
+    weights: Vec<f32>,
+    bias: Vec<f32>,
+    relu: bool,
 }
 
 /// Why a burn convolution has no plain counterpart.
@@ -184,8 +190,8 @@ impl PlainNet {
                     &mut to[..layer.outputs() * lh * lw],
                 );
                 match layer {
-                    Layer::Spatial { .. } => spatial::<FMA>(layer, src, h, w, dst, scratch),
-                    Layer::Pointwise { .. } => pointwise::<FMA>(layer, src, h * w, dst),
+                    Layer::Spatial(layer) => spatial::<FMA>(layer, src, h, w, dst, scratch),
+                    Layer::Pointwise(layer) => pointwise::<FMA>(layer, src, h * w, dst),
                 }
                 std::mem::swap(from, to);
                 (h, w) = (lh, lw);
@@ -230,7 +236,7 @@ impl Layer {
                 if conv.groups == 0 || !outputs.is_multiple_of(conv.groups) {
                     return Err(format!("{outputs} outputs in {} groups", conv.groups));
                 }
-                Ok(Layer::Spatial {
+                Ok(Layer::Spatial(Spatial {
                     inputs,
                     outputs,
                     groups: conv.groups,
@@ -239,7 +245,7 @@ impl Layer {
                     weights,
                     bias,
                     relu,
-                })
+                }))
             }
             [1, 1] => {
                 if conv.groups != 1 || conv.stride != [1, 1] {
@@ -257,13 +263,13 @@ impl Layer {
                 let weights = (0..inputs * outputs)
                     .map(|k| weights[(k % outputs) * inputs + k / outputs])
                     .collect();
-                Ok(Layer::Pointwise {
+                Ok(Layer::Pointwise(Pointwise {
                     inputs,
                     outputs,
                     weights,
                     bias,
                     relu,
-                })
+                }))
             }
             k => Err(format!("kernel {k:?}")),
         }
@@ -271,20 +277,23 @@ impl Layer {
 
     fn inputs(&self) -> usize {
         match self {
-            Layer::Spatial { inputs, .. } | Layer::Pointwise { inputs, .. } => *inputs,
+            Layer::Spatial(Spatial { inputs, .. }) | Layer::Pointwise(Pointwise { inputs, .. }) => {
+                *inputs
+            }
         }
     }
 
     fn output_size(&self, h: usize, w: usize) -> (usize, usize) {
         match self {
-            Layer::Spatial { stride, .. } => (out_side(h, *stride), out_side(w, *stride)),
-            Layer::Pointwise { .. } => (h, w),
+            Layer::Spatial(Spatial { stride, .. }) => (out_side(h, *stride), out_side(w, *stride)),
+            Layer::Pointwise(_) => (h, w),
         }
     }
 
     fn outputs(&self) -> usize {
         match self {
-            Layer::Spatial { outputs, .. } | Layer::Pointwise { outputs, .. } => *outputs,
+            Layer::Spatial(Spatial { outputs, .. })
+            | Layer::Pointwise(Pointwise { outputs, .. }) => *outputs,
         }
     }
 }
@@ -310,17 +319,17 @@ fn madd<const FMA: bool>(a: f32, b: f32, c: f32) -> f32 {
 /// Output pixels per block of a row: two AVX registers, summed over all taps before stored.
 const LANES: usize = 16;
 
-/// A [`Layer::Spatial`] on `planes` (inputs × h × w) into `out` (outputs × oh × ow).
+/// A [`Spatial`] layer on `planes` (inputs × h × w) into `out` (outputs × oh × ow).
 #[inline(always)]
 fn spatial<const FMA: bool>(
-    layer: &Layer,
+    layer: &Spatial,
     planes: &[f32],
     h: usize,
     w: usize,
     out: &mut [f32],
     scratch: &mut Vec<f32>,
 ) {
-    let Layer::Spatial {
+    let Spatial {
         inputs,
         outputs,
         groups,
@@ -329,10 +338,7 @@ fn spatial<const FMA: bool>(
         weights,
         bias,
         relu,
-    } = layer
-    else {
-        unreachable!("a spatial layer")
-    };
+    } = layer;
     let (s, d) = (*stride, *dilation);
     let (oh, ow) = (out_side(h, s), out_side(w, s));
     let (group_inputs, group_outputs) = (inputs / groups, outputs / groups);
@@ -445,19 +451,16 @@ fn store(dst: &mut [f32], acc: &[f32], relu: bool) {
 /// AVX registers of sums that every input load feeds four times.
 const OUTPUT_BLOCK: usize = 4;
 
-/// A [`Layer::Pointwise`] on `planes` (inputs × `pixels`) into `out` (outputs × `pixels`).
+/// A [`Pointwise`] layer on `planes` (inputs × `pixels`) into `out` (outputs × `pixels`).
 #[inline(always)]
-fn pointwise<const FMA: bool>(layer: &Layer, planes: &[f32], pixels: usize, out: &mut [f32]) {
-    let Layer::Pointwise {
+fn pointwise<const FMA: bool>(layer: &Pointwise, planes: &[f32], pixels: usize, out: &mut [f32]) {
+    let Pointwise {
         inputs,
         outputs,
         weights,
         bias,
         relu,
-    } = layer
-    else {
-        unreachable!("a pointwise layer")
-    };
+    } = layer;
     let (inputs, outputs) = (*inputs, *outputs);
     let mut start = 0;
     while start + LANES <= pixels {
@@ -519,6 +522,16 @@ fn pointwise_block<const FMA: bool, const OUTS: usize>(
             relu,
         );
     }
+}
+
+/// The largest absolute difference between two maps of one length: how the tests hold the plain
+/// loops (and the folded networks) to burn's layers.
+#[cfg(test)]
+pub(crate) fn largest_difference(a: &[f32], b: &[f32]) -> f32 {
+    assert_eq!(a.len(), b.len(), "maps of different lengths");
+    a.iter()
+        .zip(b)
+        .fold(0.0f32, |m, (x, y)| m.max((x - y).abs()))
 }
 
 #[cfg(test)]
@@ -610,12 +623,8 @@ mod tests {
             assert_eq!(plain.output_channels(), c);
             let want = want.into_data().try_to_vec::<f32>().unwrap();
             let got = plain.forward(&data, n, h, w);
-            assert_eq!(got.len(), want.len());
             let largest = want.iter().fold(1.0f32, |m, v| m.max(v.abs()));
-            let worst = want
-                .iter()
-                .zip(&got)
-                .fold(0.0f32, |m, (a, b)| m.max((a - b).abs()));
+            let worst = largest_difference(&want, &got);
             assert!(worst <= 1e-5 * largest, "{h} × {w}: off by {worst}");
         }
         // The portable path too, where the CPU would have taken the fused one.
@@ -625,10 +634,7 @@ mod tests {
         let mut portable = Vec::new();
         let mut workspace = [vec![0.0; 21 * 18 * 8], vec![0.0; 21 * 18 * 8], Vec::new()];
         plain.images::<false>(&data, 1, (21, 18), &mut workspace, &mut portable);
-        let worst = fused
-            .iter()
-            .zip(&portable)
-            .fold(0.0f32, |m, (a, b)| m.max((a - b).abs()));
+        let worst = largest_difference(&fused, &portable);
         assert!(worst < 1e-4, "paths differ by {worst}");
     }
 

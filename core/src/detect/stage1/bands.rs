@@ -132,6 +132,7 @@ mod tests {
     use super::super::model_file;
     use super::super::pipeline::{pyramid, SHIPPED_STAGE1};
     use super::*;
+    use crate::detect::plain_net::largest_difference;
     use burn::tensor::Device;
 
     #[test]
@@ -189,11 +190,7 @@ mod tests {
         assert_eq!(banded.len(), whole.len());
         for (b, w) in banded.iter().zip(&whole) {
             assert_eq!((b.columns, b.rows), (w.columns, w.rows));
-            let worst = |x: &[f32], y: &[f32]| {
-                x.iter()
-                    .zip(y)
-                    .fold(0.0f32, |m, (p, q)| m.max((p - q).abs()))
-            };
+            let worst = largest_difference;
             let flat = |v: &[[f32; 2]]| v.iter().flatten().copied().collect::<Vec<f32>>();
             for (name, diff) in [
                 ("heat", worst(&b.heat, &w.heat)),

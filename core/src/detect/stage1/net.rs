@@ -128,6 +128,7 @@ pub fn macs(config: &NetConfig, pixels: u64) -> u64 {
 #[cfg(test)]
 mod tests {
     use super::super::model_file;
+    use crate::detect::plain_net::largest_difference;
 
     #[test]
     fn the_receptive_field_reaches_37_pixels_from_a_cell() {
@@ -169,11 +170,7 @@ mod tests {
             .unwrap();
         let largest = before.iter().fold(1.0f32, |m, v| m.max(v.abs()));
         for (name, maps) in [("folded", after), ("plain", plain)] {
-            assert_eq!(maps.len(), before.len(), "{name}");
-            let worst = before
-                .iter()
-                .zip(&maps)
-                .fold(0.0f32, |m, (x, y)| m.max((x - y).abs()));
+            let worst = largest_difference(&before, &maps);
             assert!(
                 worst <= 1e-4 * largest,
                 "{name} maps differ by {worst} (largest {largest})"

@@ -5,6 +5,7 @@ use super::shipped_model;
 use super::ReadOptions;
 use super::Stage2;
 use crate::builtin;
+use crate::detect::plain_net::largest_difference;
 use crate::detect::refine::RefineMode;
 use crate::pose::Pose;
 use crate::synth::{synthesize, Mode, SynthConfig};
@@ -130,12 +131,7 @@ fn folded_batch_norms_compute_what_the_shipped_network_does() {
     let want = super::pipeline::raw_outputs(net.forward(input()), header.net.classes).remove(0);
     let got = net.plain().outputs(&pixels, p);
     assert_eq!(got.classes, want.classes);
-    let worst = |a: &[f32], b: &[f32]| {
-        assert_eq!(a.len(), b.len());
-        a.iter()
-            .zip(b)
-            .fold(0.0f32, |m, (x, y)| m.max((x - y).abs()))
-    };
+    let worst = largest_difference;
     let flat2 = |v: &[[f32; 2]]| v.iter().flatten().copied().collect::<Vec<f32>>();
     assert!(
         worst(&got.probs, &want.probs) <= 1e-4,
@@ -152,10 +148,7 @@ fn folded_batch_norms_compute_what_the_shipped_network_does() {
     let folded = net.fold_batch_norms();
     for (a, b) in before.iter().zip(outputs(&folded)) {
         let largest = a.iter().fold(1.0f32, |m, v| m.max(v.abs()));
-        let worst = a
-            .iter()
-            .zip(&b)
-            .fold(0.0f32, |m, (x, y)| m.max((x - y).abs()));
+        let worst = largest_difference(a, &b);
         assert!(worst <= 1e-4 * largest, "outputs differ by {worst}");
     }
     let saved = model_file::to_bytes(folded, &header.net, &family, 1).unwrap();
