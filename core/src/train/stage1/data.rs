@@ -7,8 +7,10 @@
 //! Sample `i` of a run is a pure function of (run seed, i).
 
 use crate::detect::stage1::targets::{encode, MarkerQuad, Targets};
+use crate::detect::stage1::STRIDE;
 use crate::detect::stage2::normalise_patch;
 use crate::family::Family;
+use crate::geometry::inside_polygon;
 use crate::image::GrayImage;
 use crate::synth::{synthesize, Mode, SynthConfig};
 use rand::{Rng, SeedableRng};
@@ -22,6 +24,8 @@ pub struct SceneSample {
     /// [`normalise_patch`] of the image: the network's input.
     pub input: Vec<f32>,
     pub targets: Targets,
+    /// Per-cell weight of the mask loss (see [`mask_weights`]).
+    pub mask_weight: Vec<f32>,
     /// The markers' ROI corners, for validation.
     pub quads: Vec<[[f64; 2]; 4]>,
 }
@@ -74,7 +78,42 @@ pub fn make_sample(families: &[Family], seed: u64) -> Result<SceneSample, String
     Ok(SceneSample {
         input: normalise_patch(&sample.image),
         image: sample.image,
+        mask_weight: mask_weights(&targets, &quads),
         targets,
         quads: quads.iter().map(|q| q.corners).collect(),
     })
+}
+
+/// A marker's mask cells count as if it covered this many cells, when it covers fewer.
+const MASK_EVEN_CELLS: f64 = 64.0;
+/// The most weight one mask cell gets.
+const MASK_MOST_WEIGHT: f64 = 4.0;
+
+/// Weights of the mask loss: 1 on the background, and on a small marker's cells
+/// `sqrt(64 / cells)` (at most 4), so that a marker covering 12 cells weighs more like a large one.
+/// Under a plain mean the background and the large markers decide the loss, and the network
+/// learned to put a thin far marker's mask under the detector's threshold (0.07 on a 60-cm
+/// sliver where the traced search needs 0.1).
+pub fn mask_weights(targets: &Targets, quads: &[MarkerQuad]) -> Vec<f32> {
+    let s = STRIDE as f64;
+    let mut weights = vec![1.0f32; targets.mask.len()];
+    for q in quads {
+        let cells: Vec<usize> = (0..targets.mask.len())
+            .filter(|&i| {
+                let (cx, cy) = (i % targets.columns, i / targets.columns);
+                let p = [(cx as f64 + 0.5) * s, (cy as f64 + 0.5) * s];
+                inside_polygon(&q.outline, p)
+            })
+            .collect();
+        if cells.is_empty() {
+            continue;
+        }
+        let w = (MASK_EVEN_CELLS / cells.len() as f64)
+            .sqrt()
+            .clamp(1.0, MASK_MOST_WEIGHT) as f32;
+        for i in cells {
+            weights[i] = weights[i].max(w);
+        }
+    }
+    weights
 }

@@ -1,7 +1,7 @@
 //! Stage-1 losses: the CenterNet focal loss on the corner heat map (positives are the corners'
 //! own cells, negatives are weighted down near a corner by (1 − bump)⁴), smooth-L1 on the
 //! corner offsets and squared error on the directions in the cells around each corner, binary
-//! cross-entropy on the mask.
+//! cross-entropy on the mask, small markers' cells weighted up ([`super::data::mask_weights`]).
 
 use super::data::SceneSample;
 use crate::train::stage2::loss::smooth_l1;
@@ -16,6 +16,7 @@ pub struct Batch {
     offset: Tensor<4>,
     direction: Tensor<4>,
     mask: Tensor<4>,
+    mask_weight: Tensor<4>,
     positives: usize,
     regressed: usize,
 }
@@ -62,6 +63,7 @@ impl Batch {
             offset: one(&|s| planes(&s.targets.offset), 2),
             direction: one(&|s| planes(&s.targets.direction), 2),
             mask: one(&|s| s.targets.mask.clone(), 1),
+            mask_weight: one(&|s| s.mask_weight.clone(), 1),
             positives,
             regressed,
         }
@@ -105,8 +107,9 @@ pub fn losses(out: Tensor<4>, b: &Batch) -> (Tensor<1>, LossTerms) {
         .div_scalar(norm);
 
     let m = channel(5..6);
-    let mask = (b.mask.clone() * log_sigmoid(m.clone())
+    let mask = ((b.mask.clone() * log_sigmoid(m.clone())
         + one_minus(b.mask.clone()) * log_sigmoid(m.neg()))
+        * b.mask_weight.clone())
     .mean()
     .neg();
 

@@ -33,3 +33,28 @@ fn stage1_finds_markers_of_designs_it_never_saw() {
         b.recall
     );
 }
+
+#[test]
+fn a_small_markers_mask_weighs_more_than_a_large_ones() {
+    use crate::detect::stage1::targets::{encode, MarkerQuad};
+    let square = |x: f64, y: f64, side: f64| {
+        let corners = [[x, y], [x + side, y], [x + side, y + side], [x, y + side]];
+        MarkerQuad {
+            corners,
+            outline: corners.to_vec(),
+        }
+    };
+    // 16 px: 16 cells at stride 4, weight sqrt(64 / 16) = 2; 96 px: 576 cells, weight 1.
+    let quads = [square(8.0, 8.0, 16.0), square(120.0, 120.0, 96.0)];
+    let targets = encode(256, 256, &quads);
+    let weights = super::data::mask_weights(&targets, &quads);
+    let at = |x: usize, y: usize| weights[(y / 4) * targets.columns + x / 4];
+    assert_eq!(at(14, 14), 2.0, "inside the small marker");
+    assert_eq!(at(160, 160), 1.0, "inside the large marker");
+    assert_eq!(at(80, 80), 1.0, "background");
+    // A sliver of 2 cells is held at the most weight.
+    let sliver = [square(40.0, 40.0, 6.0)];
+    let targets = encode(256, 256, &sliver);
+    let weights = super::data::mask_weights(&targets, &sliver);
+    assert_eq!(weights.iter().copied().fold(0.0f32, f32::max), 4.0);
+}
