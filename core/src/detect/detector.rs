@@ -829,7 +829,7 @@ mod tests {
     fn the_network_reads_a_marker_from_the_frame_its_cells_fitted() {
         let image = crate::image::decode(STEEP, &Default::default()).unwrap();
         let family = crate::builtin::get("apriltag-36h11").unwrap().unwrap();
-        let mut detector = Detector::shipped(vec![family]).unwrap();
+        let mut detector = detector_for_search_tests(family);
         detector.options.edge_fits = false;
         let (found, _) = detector.detect_with(&image, None);
         assert_eq!(found.len(), 1, "{found:?}");
@@ -838,6 +838,13 @@ mod tests {
         assert_corners_within(&found[0], &STEEP_TRUTH, 1.5);
         detector.options.cell_reads = false;
         assert!(detector.detect_with(&image, None).0.is_empty());
+    }
+
+    /// The shipped stage 2 behind the stage 1 these tests were built on
+    /// ([`crate::detect::stage1::pipeline::stage1_for_search_tests`]).
+    fn detector_for_search_tests(family: Family) -> Detector {
+        let stage1 = crate::detect::stage1::pipeline::stage1_for_search_tests();
+        Detector::new(stage1, vec![FamilyReader::shipped(family).unwrap()]).unwrap()
     }
 
     fn assert_corners_within(found: &Found, truth: &[[f64; 2]; 4], px: f64) {
@@ -851,7 +858,7 @@ mod tests {
         use crate::detect::stage1::pipeline::{FAR_SLIVER, FAR_SLIVER_TRUTH};
         let image = crate::image::decode(FAR_SLIVER, &Default::default()).unwrap();
         let family = crate::builtin::get("apriltag-36h11").unwrap().unwrap();
-        let mut detector = Detector::shipped(vec![family]).unwrap();
+        let mut detector = detector_for_search_tests(family);
         let (found, _) = detector.detect_with(&image, None);
         assert_eq!(found.len(), 1, "{found:?}");
         assert_eq!(found[0].marker.id, 456);
@@ -878,7 +885,7 @@ mod tests {
     fn a_far_rhombus_is_read_after_a_closer_look_through_the_images_contrast() {
         let image = crate::image::decode(FAR_RHOMBUS, &Default::default()).unwrap();
         let family = crate::builtin::get("apriltag-36h11").unwrap().unwrap();
-        let mut detector = Detector::shipped(vec![family]).unwrap();
+        let mut detector = detector_for_search_tests(family);
         let (found, _) = detector.detect_with(&image, None);
         assert_eq!(found.len(), 1, "{found:?}");
         assert_eq!(found[0].marker.id, 388);
@@ -905,7 +912,7 @@ mod tests {
     fn a_sliver_traced_past_the_networks_reads_is_read_by_its_cells() {
         let image = crate::image::decode(CLUTTERED, &Default::default()).unwrap();
         let family = crate::builtin::get("apriltag-36h11").unwrap().unwrap();
-        let mut detector = Detector::shipped(vec![family]).unwrap();
+        let mut detector = detector_for_search_tests(family);
         detector.options.edge_fits = false;
         let (found, _) = detector.detect_with(&image, None);
         assert_eq!(found.len(), 1, "{found:?}");

@@ -650,6 +650,16 @@ pub fn maps_of(net: &PlainNet, images: &[GrayImage], contrast: Option<Contrast>)
     maps_from_raw(&raw, images.len(), pw / STRIDE, ph / STRIDE)
 }
 
+/// The stage-1 weights shipped before 2026-12-04 (the mask loss then a plain mean). The tests of
+/// the searches that start where the network misses (closer looks, traced quads, cell reads) were
+/// built on crops that these weights miss; a retrained network finds some of those markers by
+/// itself, which would leave the search under test unexercised, so those tests pin these weights.
+#[cfg(test)]
+pub(crate) fn stage1_for_search_tests() -> Stage1 {
+    const BYTES: &[u8] = include_bytes!("testdata/stage1-before-mask-weights.bin");
+    Stage1::from_bytes(BYTES, "stage 1 of the search tests").unwrap()
+}
+
 /// Development seed 11 #97 cut out (x 785–945, y 186–306 of a 1280×960 image): tag36h11 #456
 /// 100 cm away at 65°, 8 px across, with its ROI.
 #[cfg(test)]
@@ -682,7 +692,7 @@ mod tests {
     #[test]
     fn a_closer_look_finds_the_quad_of_a_far_sliver() {
         let image = crate::image::decode(FAR_SLIVER, &Default::default()).unwrap();
-        let stage1 = Stage1::shipped().unwrap();
+        let stage1 = stage1_for_search_tests();
         let options = ProposeOptions::default();
         let search = stage1.search(&image, &options);
         let near_truth = |quads: &[Proposal]| any_near(quads, &FAR_SLIVER_TRUTH, 10.0);
