@@ -49,6 +49,19 @@ pub fn diagonal_crossing(c: &[[f64; 2]; 4]) -> Option<[f64; 2]> {
     Some([c[0][0] + t * d1[0], c[0][1] + t * d1[1]])
 }
 
+/// The cells of a `columns` × `rows` map whose centre lies inside `outline`: a marker's mask.
+pub fn cells_inside(
+    outline: &[[f64; 2]],
+    columns: usize,
+    rows: usize,
+) -> impl Iterator<Item = usize> + '_ {
+    let s = STRIDE as f64;
+    (0..columns * rows).filter(move |&i| {
+        let (cx, cy) = (i % columns, i / columns);
+        inside_polygon(outline, [(cx as f64 + 0.5) * s, (cy as f64 + 0.5) * s])
+    })
+}
+
 /// The targets for a `width` × `height` image (multiples of [`STRIDE`]) showing `markers`.
 pub fn encode(width: usize, height: usize, markers: &[MarkerQuad]) -> Targets {
     let (columns, rows) = (width / STRIDE, height / STRIDE);
@@ -67,13 +80,8 @@ pub fn encode(width: usize, height: usize, markers: &[MarkerQuad]) -> Targets {
         let Some(centre) = diagonal_crossing(&m.corners) else {
             continue;
         };
-        for cy in 0..rows {
-            for cx in 0..columns {
-                let p = [(cx as f64 + 0.5) * s, (cy as f64 + 0.5) * s];
-                if inside_polygon(&m.outline, p) {
-                    t.mask[cy * columns + cx] = 1.0;
-                }
-            }
+        for i in cells_inside(&m.outline, columns, rows) {
+            t.mask[i] = 1.0;
         }
         for corner in m.corners {
             let (gx, gy) = (corner[0] / s, corner[1] / s);

@@ -6,11 +6,9 @@
 //!
 //! Sample `i` of a run is a pure function of (run seed, i).
 
-use crate::detect::stage1::targets::{encode, MarkerQuad, Targets};
-use crate::detect::stage1::STRIDE;
+use crate::detect::stage1::targets::{cells_inside, encode, MarkerQuad, Targets};
 use crate::detect::stage2::normalise_patch;
 use crate::family::Family;
-use crate::geometry::inside_polygon;
 use crate::image::GrayImage;
 use crate::synth::{synthesize, Mode, SynthConfig};
 use rand::{Rng, SeedableRng};
@@ -95,16 +93,9 @@ const MASK_MOST_WEIGHT: f64 = 4.0;
 /// learned to put a thin far marker's mask under the detector's threshold (0.07 on a 60-cm
 /// sliver where the traced search needs 0.1).
 pub fn mask_weights(targets: &Targets, quads: &[MarkerQuad]) -> Vec<f32> {
-    let s = STRIDE as f64;
     let mut weights = vec![1.0f32; targets.mask.len()];
     for q in quads {
-        let cells: Vec<usize> = (0..targets.mask.len())
-            .filter(|&i| {
-                let (cx, cy) = (i % targets.columns, i / targets.columns);
-                let p = [(cx as f64 + 0.5) * s, (cy as f64 + 0.5) * s];
-                inside_polygon(&q.outline, p)
-            })
-            .collect();
+        let cells: Vec<usize> = cells_inside(&q.outline, targets.columns, targets.rows).collect();
         if cells.is_empty() {
             continue;
         }
