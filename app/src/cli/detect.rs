@@ -70,9 +70,9 @@ pub struct DetectArgs {
     /// Skip the searches for the steep views the network's grouping misses: stage 1's weaker
     /// corners joined where the image shows a quad's sides, quads traced around dark blobs where
     /// the network sees a marker (its mask or its corners), and the network's closer look (twice
-    /// the size) around its
-    /// strong corners that no read accounts for (together a few ms on a typical image, about
-    /// 30 ms on a cluttered photograph).
+    /// the size) and stretched look (four times across a corner's direction) around its strong
+    /// corners that no read accounts for (together a few ms on a typical image, about 30 ms on
+    /// a cluttered photograph).
     #[arg(long)]
     pub no_outline: bool,
     /// Read only through stage 2's network: no cell reads straight off the image for the ROIs
@@ -372,7 +372,8 @@ pub struct DetectSetArgs {
     /// With --full: stage 1 also on the image enlarged twice (as `detect --upsample`).
     #[arg(long)]
     pub upsample: bool,
-    /// With --full: no outlined or traced quads, no closer looks (as `detect --no-outline`).
+    /// With --full: no outlined or traced quads, no closer or stretched looks (as `detect
+    /// --no-outline`).
     #[arg(long)]
     pub no_outline: bool,
     /// With --full: no cell reads (as `detect --no-cell-reads`).

@@ -63,7 +63,8 @@ pub struct DetectState {
     /// Stage 1 also on the image enlarged twice (markers down to about 10 px).
     pub upsample: bool,
     /// The searches for steep views: stage 1's weaker corners joined where the image outlines
-    /// a quad, quads traced around dark blobs, and the network's closer look at unread corners.
+    /// a quad, quads traced around dark blobs, and the network's closer and stretched looks at
+    /// unread corners.
     pub outline: bool,
     pub image: Option<LoadedImage>,
     pub result: Option<DetectResult>,

@@ -11,6 +11,7 @@ pub const STRIDE: usize = 4;
 pub mod edges;
 pub mod group;
 pub mod outline;
+pub mod stretched;
 pub mod targets;
 pub mod traced;
 

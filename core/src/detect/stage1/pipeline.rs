@@ -11,6 +11,7 @@ use super::group::{
 use super::model_file::{self, Stage1Header};
 use super::net::{NetConfig, Stage1Net, MAPS};
 use super::outline::{cross, outline_candidates, OutlineOptions};
+use super::stretched;
 use super::traced::{traced_quads_near, TraceOptions};
 use super::STRIDE;
 use crate::detect::plain_net::PlainNet;
@@ -52,6 +53,9 @@ pub struct ProposeOptions {
     /// The network again on the image enlarged twice, around its strong corners that no read
     /// accounts for ([`Stage1::close_look`]).
     pub close_look: bool,
+    /// The network again on views of the image stretched across the directions of its strong
+    /// corners that no read accounts for ([`Stage1::stretched_look`]).
+    pub stretched_look: bool,
 }
 
 impl Default for ProposeOptions {
@@ -63,6 +67,7 @@ impl Default for ProposeOptions {
             outline: Some(OutlineOptions::default()),
             trace: Some(TraceOptions::default()),
             close_look: true,
+            stretched_look: true,
         }
     }
 }
@@ -71,7 +76,7 @@ impl ProposeOptions {
     /// Whether the searches for the views the network's grouping misses — outlined and traced
     /// quads, closer looks — run.
     pub fn image_searches(&self) -> bool {
-        self.outline.is_some() || self.trace.is_some() || self.close_look
+        self.outline.is_some() || self.trace.is_some() || self.close_look || self.stretched_look
     }
 
     /// Turns those searches on (with their default limits) or off.
@@ -79,6 +84,7 @@ impl ProposeOptions {
         self.outline = on.then(OutlineOptions::default);
         self.trace = on.then(TraceOptions::default);
         self.close_look = on;
+        self.stretched_look = on;
     }
 }
 
@@ -209,6 +215,59 @@ impl Stage1 {
     }
 }
 
+impl Stage1 {
+    /// The quads the network finds on views of the image stretched four times across the
+    /// directions of its strong corners that none of the `covered` quads accounts for, and twice
+    /// along them ([`super::stretched`]), best first; none when `options.stretched_look` is off.
+    /// A needle 5–20 px across reads from its true ROI but is too thin even doubled for the
+    /// network to group; stretched across, it looks like the steep markers the network knows.
+    /// At most [`STRETCHED_LOOKS`] views, strongest corner first.
+    pub fn stretched_look(
+        &self,
+        search: &Search,
+        image: &GrayImage,
+        covered: &[[[f64; 2]; 4]],
+        options: &ProposeOptions,
+    ) -> Outlined {
+        if !options.stretched_look {
+            return Outlined(Vec::new());
+        }
+        let grown = grown(covered);
+        let explained = |p: [f64; 2]| {
+            grown.iter().any(|q| {
+                inside_polygon(q, p)
+                    || (0..4).any(|i| distance_to_segment(p, q[i], q[(i + 1) % 4]) < 4.0)
+            })
+        };
+        let strong = search.strong_corners(CLOSE_LOOK_CORNER);
+        let weak = search.strong_corners(CORNER_QUAD_SCORE);
+        let views = stretched::views(&weak, &strong, &explained, STRETCHED_LOOKS);
+        if views.is_empty() {
+            return Outlined(Vec::new());
+        }
+        let crops: Vec<GrayImage> = views.iter().map(|v| v.crop(image)).collect();
+        let maps = maps_of(&self.net, &crops, Some(search.contrast));
+        let mut out: Vec<Candidate> = Vec::new();
+        for (view, maps) in views.iter().zip(maps) {
+            let corners = maps.corners(options.group.corner, 1.0);
+
+            let mask = |p: [f64; 2]| maps.mask_at(p, 1.0);
+            let first = out
+                .iter()
+                .flat_map(|c| c.corners)
+                .max()
+                .map_or(0, |m| m + 1);
+            for mut c in candidates(&corners, &mask, &options.group) {
+                c.corners = c.corners.map(|i| i + first);
+                c.proposal.corners = c.proposal.corners.map(|p| view.to_image(p));
+                out.push(c);
+            }
+        }
+        out.sort_by(|a, b| b.proposal.score.total_cmp(&a.proposal.score));
+        Outlined(out)
+    }
+}
+
 fn distance_to_segment(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
     let (ab, ap) = ([b[0] - a[0], b[1] - a[1]], [p[0] - a[0], p[1] - a[1]]);
     let length2 = ab[0] * ab[0] + ab[1] * ab[1];
@@ -237,6 +296,9 @@ const CORNER_QUAD_SCORE: f64 = 0.3;
 const CORNER_QUAD_CORNERS: usize = 24;
 const CORNER_QUAD_SPAN: f64 = 120.0;
 const CORNER_QUAD_FITS: usize = 300;
+
+/// Stretched looks per image at most: each runs the network on a 256 × 160 crop, about 2 ms.
+const STRETCHED_LOOKS: usize = 6;
 
 /// Closer looks per image at most: each runs the network on a 192² crop, about 2 ms.
 const CLOSE_LOOKS: usize = 6;
