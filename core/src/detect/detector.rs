@@ -923,12 +923,14 @@ mod tests {
 
     /// The closer look's crop, normalised as the whole image is, shows the network the rhombus
     /// it finds in the image doubled; normalised by its own contrast, or centred on the
-    /// rhombus's end, it showed nothing.
+    /// rhombus's end, it showed nothing. (The stretched look, which comes after it, reads this
+    /// one too: off here.)
     #[test]
     fn a_far_rhombus_is_read_after_a_closer_look_through_the_images_contrast() {
         let image = crate::image::decode(FAR_RHOMBUS, &Default::default()).unwrap();
         let family = crate::builtin::get("apriltag-36h11").unwrap().unwrap();
         let mut detector = detector_for_search_tests(family);
+        detector.options.propose.stretched_look = false;
         let (found, _) = detector.detect_with(&image, None);
         assert_eq!(found.len(), 1, "{found:?}");
         assert_eq!(found[0].marker.id, 388);
