@@ -169,13 +169,7 @@ impl Stage1 {
                 let (cx, cy) = (x0 as f64 + r, y0 as f64 + r);
                 (x - cx).abs() < r / 2.0 && (y - cy).abs() < r / 2.0
             });
-            // A read marker's own corners lie on its outline, outside a sliver's quad even grown
-            // by a fifth: those within a few pixels of it are its too.
-            let explained = |q: &[[f64; 2]; 4]| {
-                inside_polygon(q, corner.at)
-                    || (0..4).any(|i| distance_to_segment(corner.at, q[i], q[(i + 1) % 4]) < 4.0)
-            };
-            if seen || grown.iter().any(explained) {
+            if seen || explained_by(&grown, corner.at) {
                 continue;
             }
             let start =
@@ -188,16 +182,34 @@ impl Stage1 {
         let levels: Vec<GrayImage> = (boxes.iter())
             .map(|&[x0, y0]| double(&image.crop(x0, y0, side, side)))
             .collect();
+        let to_image = |k: usize, p: [f64; 2]| {
+            let [x0, y0] = boxes[k];
+            [p[0] + x0 as f64, p[1] + y0 as f64]
+        };
+        self.quads_in_crops(&levels, 0.5, &to_image, search, options)
+    }
+
+    /// The quads the network groups in `crops` (each `scale` image pixels per crop pixel, as
+    /// [`Maps::corners`] takes it), moved into the image by `to_image(crop index, point)`, best
+    /// first.
+    fn quads_in_crops(
+        &self,
+        crops: &[GrayImage],
+        scale: f64,
+        to_image: &dyn Fn(usize, [f64; 2]) -> [f64; 2],
+        search: &Search,
+        options: &ProposeOptions,
+    ) -> Outlined {
         let mut out: Vec<Candidate> = Vec::new();
         // Each crop normalised as the whole image is, as the network sees it there and as it
         // was trained: a crop of flat background and a faint sliver, normalised by its own
         // contrast, looked like no marker the network knew (dev seed 40 #398: read through the
         // image's contrast, not through the crop's).
-        let maps = maps_of(&self.net, &levels, Some(search.contrast));
-        for ([x0, y0], maps) in boxes.into_iter().zip(maps) {
-            let corners = maps.corners(options.group.corner, 0.5);
-            let mask = |p: [f64; 2]| maps.mask_at(p, 0.5);
-            // Corner indices stay unique across boxes, so that the selection takes each once.
+        let maps = maps_of(&self.net, crops, Some(search.contrast));
+        for (k, maps) in maps.iter().enumerate() {
+            let corners = maps.corners(options.group.corner, scale);
+            let mask = |p: [f64; 2]| maps.mask_at(p, scale);
+            // Corner indices stay unique across crops, so that the selection takes each once.
             let first = out
                 .iter()
                 .flat_map(|c| c.corners)
@@ -205,8 +217,7 @@ impl Stage1 {
                 .map_or(0, |m| m + 1);
             for mut c in candidates(&corners, &mask, &options.group) {
                 c.corners = c.corners.map(|i| i + first);
-                c.proposal.corners =
-                    (c.proposal.corners).map(|p| [p[0] + x0 as f64, p[1] + y0 as f64]);
+                c.proposal.corners = c.proposal.corners.map(|p| to_image(k, p));
                 out.push(c);
             }
         }
@@ -233,12 +244,7 @@ impl Stage1 {
             return Outlined(Vec::new());
         }
         let grown = grown(covered);
-        let explained = |p: [f64; 2]| {
-            grown.iter().any(|q| {
-                inside_polygon(q, p)
-                    || (0..4).any(|i| distance_to_segment(p, q[i], q[(i + 1) % 4]) < 4.0)
-            })
-        };
+        let explained = |p: [f64; 2]| explained_by(&grown, p);
         let strong = search.strong_corners(CLOSE_LOOK_CORNER);
         let weak = search.strong_corners(CORNER_QUAD_SCORE);
         let views = stretched::views(&weak, &strong, &explained, STRETCHED_LOOKS);
@@ -246,26 +252,18 @@ impl Stage1 {
             return Outlined(Vec::new());
         }
         let crops: Vec<GrayImage> = views.iter().map(|v| v.crop(image)).collect();
-        let maps = maps_of(&self.net, &crops, Some(search.contrast));
-        let mut out: Vec<Candidate> = Vec::new();
-        for (view, maps) in views.iter().zip(maps) {
-            let corners = maps.corners(options.group.corner, 1.0);
-
-            let mask = |p: [f64; 2]| maps.mask_at(p, 1.0);
-            let first = out
-                .iter()
-                .flat_map(|c| c.corners)
-                .max()
-                .map_or(0, |m| m + 1);
-            for mut c in candidates(&corners, &mask, &options.group) {
-                c.corners = c.corners.map(|i| i + first);
-                c.proposal.corners = c.proposal.corners.map(|p| view.to_image(p));
-                out.push(c);
-            }
-        }
-        out.sort_by(|a, b| b.proposal.score.total_cmp(&a.proposal.score));
-        Outlined(out)
+        let to_image = |k: usize, p: [f64; 2]| views[k].to_image(p);
+        self.quads_in_crops(&crops, 1.0, &to_image, search, options)
     }
+}
+
+/// Whether a read marker accounts for corner `p`: inside one of the `grown` quads, or within a
+/// few pixels of its outline (a read marker's own corners lie on it, outside a sliver's quad
+/// even grown by a fifth).
+fn explained_by(grown: &[[[f64; 2]; 4]], p: [f64; 2]) -> bool {
+    grown.iter().any(|q| {
+        inside_polygon(q, p) || (0..4).any(|i| distance_to_segment(p, q[i], q[(i + 1) % 4]) < 4.0)
+    })
 }
 
 fn distance_to_segment(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
