@@ -123,6 +123,34 @@ impl FamilyReader {
         }
     }
 
+    /// Whether the detector keeps a read of a proposal with this trust and ROI score.
+    ///
+    /// A read needing more than half the corrections must decode alike in every pass: a
+    /// misread of a marker under heavy noise lands on some code within the limit, and the next
+    /// pass, from a ROI that moved, on another or on none, where a right read decodes again
+    /// (dev: 4 wrong IDs in 1170 noise images gone, for 46 of 968 reads).
+    ///
+    /// A read from the keypoints of a first pass that decoded nothing is kept only where the
+    /// alignment with the rendering accepted its frame: from a ROI 15 px off at a corner, such
+    /// a read of a dim real tag decoded with no correction but a corner 5 px off, and took the
+    /// place of a better read (swarmathon `34139872896`); 13 of its 14 right reads under dev
+    /// noise were aligned. With more than half the corrections its keypoints must also fit a
+    /// pose closely: keypoints sorted a cell off place a frame that reads another code, and
+    /// both passes from it may agree (dev seed 45 #48, a marker at 10 cm and 75°: another ID
+    /// with 4 corrections, 11 px RMS, about 0.3 of a cell pitch; right reads of that kind under
+    /// noise at most 0.43 px, a few hundredths of a pitch).
+    fn accepts(&self, m: &Stage2Result, trust: Trust, roi_score: f64) -> bool {
+        let limit = self.family.codebook().max_correction();
+        let aligned = m.refinement.as_ref().is_some_and(|r| r.refined);
+        (!m.from_keypoints || aligned)
+            && m.corrected_errors <= trust.allowed(limit, roi_score)
+            && (m.corrected_errors <= limit || self.rigid(m))
+            && (m.corrected_errors <= limit / 2
+                || (m.passes_agree
+                    && (!m.from_keypoints
+                        || self.fits_a_pose_within(m, MAX_KEYPOINT_READ_RMS_PITCH))))
+    }
+
     /// Whether a rigid pose explains the read's keypoints: their reprojection RMS is at most
     /// [`MAX_RIGID_RMS_PITCH`] of a cell pitch in the image (a read without a pose passes).
     /// Asked only of reads that needed more corrections than the family's limit for errors
@@ -130,6 +158,12 @@ impl FamilyReader {
     /// sees a flat marker through (development sets: the one such wrong ID, 0.42 pitch; right
     /// reads at most 0.16).
     fn rigid(&self, marker: &Stage2Result) -> bool {
+        self.fits_a_pose_within(marker, MAX_RIGID_RMS_PITCH)
+    }
+
+    /// Whether the read's keypoints reproject from its pose with an RMS of at most
+    /// `max_rms_pitch` cell pitches in the image (a read without a pose passes).
+    fn fits_a_pose_within(&self, marker: &Stage2Result, max_rms_pitch: f64) -> bool {
         let Some(pose) = &marker.pose else {
             return true;
         };
@@ -139,7 +173,7 @@ impl FamilyReader {
             .map(|i| (c[i][0] - c[(i + 1) % 4][0]).hypot(c[i][1] - c[(i + 1) % 4][1]))
             .sum::<f64>()
             / 4.0;
-        pose.rms_px <= MAX_RIGID_RMS_PITCH * pitch * side
+        pose.rms_px <= max_rms_pitch * pitch * side
     }
 
     /// The family with its shipped stage-2 weights.
@@ -424,10 +458,11 @@ impl Detector {
             let checked_rois: Vec<[[f64; 2]; 4]> = checked.iter().map(|&i| rois[i]).collect();
             timings.reads += checked_rois.len();
             let mut firsts = vec![None; rois.len()];
-            for (i, first) in checked
-                .iter()
-                .zip(reader.stage2.first_passes(image, &checked_rois))
-            {
+            for (i, first) in checked.iter().zip(reader.stage2.first_passes(
+                image,
+                &checked_rois,
+                &self.options.read,
+            )) {
                 firsts[*i] = first;
             }
             // The rest of each read (second pass, alignment, pose) on both cores.
@@ -446,16 +481,9 @@ impl Detector {
                     Some((i, marker))
                 })
                 .collect();
-            let limit = reader.family.codebook().max_correction();
-            // A read needing more than half the corrections must decode alike in every pass:
-            // a misread of a marker under heavy noise lands on some code within the limit, and
-            // the next pass, from a ROI that moved, on another or on none, where a right read
-            // decodes again (dev: 4 wrong IDs in 1170 noise images gone, for 46 of 968 reads).
-            let read = read.into_iter().filter(|(i, m)| {
-                m.corrected_errors <= trust.allowed(limit, proposals[*i].score)
-                    && (m.corrected_errors <= limit || reader.rigid(m))
-                    && (m.corrected_errors <= limit / 2 || m.passes_agree)
-            });
+            let read = read
+                .into_iter()
+                .filter(|(i, m)| reader.accepts(m, trust, proposals[*i].score));
             keep_fewest_corrections(&mut best, reader, proposals, read, false);
         }
         best
@@ -638,6 +666,7 @@ fn cell_result(family: &Family, read: &CellRead) -> Option<Stage2Result> {
         keypoints,
         iterations: 1,
         passes_agree: true,
+        from_keypoints: false,
         refinement: None,
         pose: None,
     })
@@ -646,6 +675,10 @@ fn cell_result(family: &Family, read: &CellRead) -> Option<Stage2Result> {
 /// The largest keypoint reprojection RMS, in cell pitches, of a read that needed more than the
 /// family's hard-decision corrections ([`FamilyReader::rigid`]).
 const MAX_RIGID_RMS_PITCH: f64 = 0.25;
+
+/// The most a read from a failed first pass's keypoints may reproject, in cell pitches, when it
+/// needs more than half the family's corrections (see `read_all`).
+const MAX_KEYPOINT_READ_RMS_PITCH: f64 = 0.1;
 
 /// Stage-1 selections per image at most: the first, and two more without the ROIs no family
 /// read.
@@ -825,6 +858,68 @@ mod tests {
         assert_eq!(Trust::First.allowed(5, 0.12), 3);
         assert_eq!(Trust::Traced.allowed(5, 0.9), 3);
         assert_eq!(Trust::Later.allowed(5, 0.9), 2);
+    }
+
+    /// A read with 4 of 36h11's 5 corrections from a 100 px marker: kept from a first pass
+    /// over its ROI; from the keypoints of one that decoded nothing, only where the alignment
+    /// with the rendering accepted its frame and its pose reprojects within a tenth of a cell
+    /// pitch (12.5 px: 1.25 px).
+    #[test]
+    fn a_read_from_a_failed_passs_keypoints_needs_an_aligned_frame_and_a_close_pose() {
+        let family = crate::builtin::get("apriltag-36h11").unwrap().unwrap();
+        let reader = FamilyReader::shipped(family).unwrap();
+        let read = |from_keypoints: bool, aligned: bool, rms_px: f64| Stage2Result {
+            id: 7,
+            rotation_deg: 0.0,
+            corrected_errors: 4,
+            fixed_mismatches: 0,
+            corners: [[0.0, 0.0], [100.0, 0.0], [100.0, 100.0], [0.0, 100.0]],
+            keypoints: Vec::new(),
+            missing: 0,
+            iterations: 2,
+            passes_agree: true,
+            from_keypoints,
+            refinement: Some(crate::detect::refine::RefineReport {
+                refined: aligned,
+                kept_because: None,
+                residual: 5.0,
+                start_residual: 9.0,
+                outliers: 0.05,
+                shift_px: 0.5,
+                blur_px: 0.8,
+                noise: 3.0,
+                iterations: 6,
+                time_ms: 1.0,
+                render_ms: 0.0,
+            }),
+            pose: Some(crate::pose::PnpSolution {
+                pose: crate::pose::Pose {
+                    rotation: nalgebra::Rotation3::identity(),
+                    translation: nalgebra::Vector3::new(0.0, 0.0, 0.5),
+                },
+                rms_px,
+                iterations: 1,
+                ambiguity_ratio: None,
+                covariance: None,
+            }),
+        };
+        assert!(reader.accepts(&read(false, false, 3.0), Trust::First, 0.9));
+        assert!(reader.accepts(&read(true, true, 0.4), Trust::First, 0.9));
+        assert!(!reader.accepts(&read(true, true, 3.0), Trust::First, 0.9));
+        assert!(!reader.accepts(&read(true, false, 0.4), Trust::First, 0.9));
+        // Within half the corrections the pose is not asked for; the alignment still is.
+        let few = |aligned| Stage2Result {
+            corrected_errors: 2,
+            ..read(true, aligned, 3.0)
+        };
+        assert!(reader.accepts(&few(true), Trust::First, 0.9));
+        assert!(!reader.accepts(&few(false), Trust::First, 0.9));
+        // Passes that disagree still refuse it, as any read with many corrections.
+        let disagreeing = Stage2Result {
+            passes_agree: false,
+            ..read(true, true, 0.4)
+        };
+        assert!(!reader.accepts(&disagreeing, Trust::First, 0.9));
     }
 
     /// A marker 60 cm away at 65°, 62 × 25 px (development seed 22 #57, cut at x 700–1100,
