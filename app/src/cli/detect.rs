@@ -51,7 +51,8 @@ pub struct DetectArgs {
     /// Marker size in mm (ROI side) for the pose [default: each family's print size].
     #[arg(long)]
     pub side_mm: Option<f64>,
-    /// Stage-2 passes (the second starts from the first's keypoints, also when the first decodes nothing) [range: 1..=10].
+    /// Stage-2 passes (the second starts from the first's keypoints, also when the first decodes
+    /// nothing, a read then kept only if `--refine full` aligns it) [range: 1..=10].
     #[arg(long, default_value_t = 2, value_parser = iterations())]
     pub iterations: usize,
     /// After stage 2: none (its keypoints as they are), keypoints (one homography through all

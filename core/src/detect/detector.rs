@@ -130,20 +130,15 @@ impl FamilyReader {
     /// pass, from a ROI that moved, on another or on none, where a right read decodes again
     /// (dev: 4 wrong IDs in 1170 noise images gone, for 46 of 968 reads).
     ///
-    /// A read from the keypoints of a first pass that decoded nothing is kept only where the
-    /// alignment with the rendering accepted its frame: from a ROI 15 px off at a corner, such
-    /// a read of a dim real tag decoded with no correction but a corner 5 px off, and took the
-    /// place of a better read (swarmathon `34139872896`); 13 of its 14 right reads under dev
-    /// noise were aligned. With more than half the corrections its keypoints must also fit a
-    /// pose closely: keypoints sorted a cell off place a frame that reads another code, and
-    /// both passes from it may agree (dev seed 45 #48, a marker at 10 cm and 75°: another ID
+    /// A read from the keypoints of a first pass that decoded nothing (stage 2 keeps it only
+    /// where the alignment with the rendering accepted its frame) must, with more than half
+    /// the corrections, also fit a pose closely: keypoints sorted a cell off place a frame that
+    /// reads another code, and both passes from it may agree (dev seed 45 #48, a marker at 10 cm and 75°: another ID
     /// with 4 corrections, 11 px RMS, about 0.3 of a cell pitch; right reads of that kind under
     /// noise at most 0.43 px, a few hundredths of a pitch).
     fn accepts(&self, m: &Stage2Result, trust: Trust, roi_score: f64) -> bool {
         let limit = self.family.codebook().max_correction();
-        let aligned = m.refinement.as_ref().is_some_and(|r| r.refined);
-        (!m.from_keypoints || aligned)
-            && m.corrected_errors <= trust.allowed(limit, roi_score)
+        m.corrected_errors <= trust.allowed(limit, roi_score)
             && (m.corrected_errors <= limit || self.rigid(m))
             && (m.corrected_errors <= limit / 2
                 || (m.passes_agree
@@ -438,8 +433,9 @@ impl Detector {
         trust: Trust,
         timings: &mut Timings,
     ) -> Vec<Option<Found>> {
-        // The first stage-2 pass of each family over every proposal in one batch; only the ROIs
-        // it decodes get the second pass, the alignment and the pose.
+        // The first stage-2 pass of each family over every proposal in one batch (and one more
+        // batch for the ROIs it decodes nothing from, from where their keypoints place them);
+        // only the ROIs decoded get the second pass, the alignment and the pose.
         let rois: Vec<[[f64; 2]; 4]> = proposals.iter().map(|p| p.corners).collect();
         let mut best: Vec<Option<Found>> = vec![None; proposals.len()];
         // The traced searches' quads (blobs, corner quads, edge refits, fitted frames) go to
@@ -677,7 +673,7 @@ fn cell_result(family: &Family, read: &CellRead) -> Option<Stage2Result> {
 const MAX_RIGID_RMS_PITCH: f64 = 0.25;
 
 /// The most a read from a failed first pass's keypoints may reproject, in cell pitches, when it
-/// needs more than half the family's corrections (see `read_all`).
+/// needs more than half the family's corrections (see [`FamilyReader::accepts`]).
 const MAX_KEYPOINT_READ_RMS_PITCH: f64 = 0.1;
 
 /// Stage-1 selections per image at most: the first, and two more without the ROIs no family
@@ -861,14 +857,13 @@ mod tests {
     }
 
     /// A read with 4 of 36h11's 5 corrections from a 100 px marker: kept from a first pass
-    /// over its ROI; from the keypoints of one that decoded nothing, only where the alignment
-    /// with the rendering accepted its frame and its pose reprojects within a tenth of a cell
-    /// pitch (12.5 px: 1.25 px).
+    /// over its ROI; from the keypoints of one that decoded nothing, only where its pose
+    /// reprojects within a tenth of a cell pitch (12.5 px: 1.25 px).
     #[test]
-    fn a_read_from_a_failed_passs_keypoints_needs_an_aligned_frame_and_a_close_pose() {
+    fn a_read_from_a_failed_passs_keypoints_needing_many_corrections_must_fit_its_pose() {
         let family = crate::builtin::get("apriltag-36h11").unwrap().unwrap();
         let reader = FamilyReader::shipped(family).unwrap();
-        let read = |from_keypoints: bool, aligned: bool, rms_px: f64| Stage2Result {
+        let read = |from_keypoints: bool, rms_px: f64| Stage2Result {
             id: 7,
             rotation_deg: 0.0,
             corrected_errors: 4,
@@ -879,19 +874,7 @@ mod tests {
             iterations: 2,
             passes_agree: true,
             from_keypoints,
-            refinement: Some(crate::detect::refine::RefineReport {
-                refined: aligned,
-                kept_because: None,
-                residual: 5.0,
-                start_residual: 9.0,
-                outliers: 0.05,
-                shift_px: 0.5,
-                blur_px: 0.8,
-                noise: 3.0,
-                iterations: 6,
-                time_ms: 1.0,
-                render_ms: 0.0,
-            }),
+            refinement: None,
             pose: Some(crate::pose::PnpSolution {
                 pose: crate::pose::Pose {
                     rotation: nalgebra::Rotation3::identity(),
@@ -903,21 +886,19 @@ mod tests {
                 covariance: None,
             }),
         };
-        assert!(reader.accepts(&read(false, false, 3.0), Trust::First, 0.9));
-        assert!(reader.accepts(&read(true, true, 0.4), Trust::First, 0.9));
-        assert!(!reader.accepts(&read(true, true, 3.0), Trust::First, 0.9));
-        assert!(!reader.accepts(&read(true, false, 0.4), Trust::First, 0.9));
-        // Within half the corrections the pose is not asked for; the alignment still is.
-        let few = |aligned| Stage2Result {
+        assert!(reader.accepts(&read(false, 3.0), Trust::First, 0.9));
+        assert!(reader.accepts(&read(true, 0.4), Trust::First, 0.9));
+        assert!(!reader.accepts(&read(true, 3.0), Trust::First, 0.9));
+        // Within half the corrections the pose is not asked for.
+        let few = Stage2Result {
             corrected_errors: 2,
-            ..read(true, aligned, 3.0)
+            ..read(true, 3.0)
         };
-        assert!(reader.accepts(&few(true), Trust::First, 0.9));
-        assert!(!reader.accepts(&few(false), Trust::First, 0.9));
+        assert!(reader.accepts(&few, Trust::First, 0.9));
         // Passes that disagree still refuse it, as any read with many corrections.
         let disagreeing = Stage2Result {
             passes_agree: false,
-            ..read(true, true, 0.4)
+            ..read(true, 0.4)
         };
         assert!(!reader.accepts(&disagreeing, Trust::First, 0.9));
     }

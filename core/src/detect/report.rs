@@ -23,8 +23,12 @@ pub struct DecodedMarker {
     pub rotation_deg: f64,
     pub corrected_errors: usize,
     pub fixed_mismatches: usize,
-    /// Stage-2 passes run.
+    /// Stage-2 passes that decoded.
     pub iterations: usize,
+    /// The first pass over the ROI decoded nothing; this read started from where its keypoints
+    /// placed the marker (and the alignment with the rendering accepted it).
+    #[serde(default)]
+    pub from_keypoints: bool,
     /// The family's ROI points in the image, canonical order.
     pub corners: [[f64; 2]; 4],
     pub missing_keypoints: usize,
@@ -73,6 +77,7 @@ impl MarkerReport {
                 corrected_errors: r.corrected_errors,
                 fixed_mismatches: r.fixed_mismatches,
                 iterations: r.iterations,
+                from_keypoints: r.from_keypoints,
                 corners: r.corners,
                 missing_keypoints: r.missing,
                 keypoints: r.keypoints.clone(),

@@ -25,23 +25,36 @@ fn shipped_aruco_weights_decode_a_noisy_marker_and_its_pose() {
     decodes_noisy_markers("aruco-6x6_250");
 }
 
-fn decodes_noisy_markers(name: &str) {
-    let family = builtin::get(name).unwrap().unwrap();
-    let bytes = shipped_model(family.name()).expect("the weights are shipped");
-    let model = Stage2::from_bytes(bytes, "shipped", &family).unwrap();
+/// One 5 cm marker seen by a pinhole camera in the distance and view-angle ranges, with this
+/// sensor noise and blur, and no spotlight, motion blur or lens distortion: the network's
+/// reading alone decides what is read.
+fn one_marker_scene(
+    distance_m: [f64; 2],
+    view_angle_deg: [f64; 2],
+    noise_sigma: f32,
+    blur_sigma: f32,
+) -> SynthConfig {
     let mut config = SynthConfig::new(Mode::Camera);
     config.markers = [1, 1];
     config.side_m = [0.05, 0.05];
-    config.distance_m = [0.25, 0.4];
-    config.view_angle_deg = [0.0, 45.0];
-    config.augment.marker_black = [20.0, 50.0];
-    config.augment.marker_white = [190.0, 235.0];
-    config.augment.noise_sigma = [4.0, 4.0];
-    config.augment.blur_sigma = [0.6, 0.6];
+    config.distance_m = distance_m;
+    config.view_angle_deg = view_angle_deg;
+    config.augment.noise_sigma = [noise_sigma, noise_sigma];
+    config.augment.blur_sigma = [blur_sigma, blur_sigma];
     config.augment.spotlight_probability = 0.0;
     config.augment.motion_blur_probability = 0.0;
     config.augment.marker_motion_blur_probability = 0.0;
     config.augment.barrel_probability = 0.0;
+    config
+}
+
+fn decodes_noisy_markers(name: &str) {
+    let family = builtin::get(name).unwrap().unwrap();
+    let bytes = shipped_model(family.name()).expect("the weights are shipped");
+    let model = Stage2::from_bytes(bytes, "shipped", &family).unwrap();
+    let mut config = one_marker_scene([0.25, 0.4], [0.0, 45.0], 4.0, 0.6);
+    config.augment.marker_black = [20.0, 50.0];
+    config.augment.marker_white = [190.0, 235.0];
     for seed in 0..4 {
         let sample = synthesize(&family, &config, seed).unwrap();
         let truth = &sample.truth.markers[0];
@@ -167,21 +180,11 @@ fn a_roi_off_at_a_steep_markers_corners_reads_from_the_keypoints_found() {
     let family = builtin::get("apriltag-36h11").unwrap().unwrap();
     let model =
         Stage2::from_bytes(shipped_model(family.name()).unwrap(), "shipped", &family).unwrap();
-    let mut config = SynthConfig::new(Mode::Camera);
-    config.markers = [1, 1];
-    config.side_m = [0.05, 0.05];
-    config.distance_m = [0.4, 0.6];
-    config.view_angle_deg = [60.0, 70.0];
-    config.augment.noise_sigma = [3.0, 3.0];
-    config.augment.blur_sigma = [0.5, 0.5];
-    config.augment.spotlight_probability = 0.0;
-    config.augment.motion_blur_probability = 0.0;
-    config.augment.marker_motion_blur_probability = 0.0;
-    config.augment.barrel_probability = 0.0;
+    let config = one_marker_scene([0.4, 0.6], [60.0, 70.0], 3.0, 0.5);
     // One pass: the first alone, so no read from its keypoints either.
     let single = ReadOptions {
         iterations: 1,
-        refine: RefineMode::None,
+        refine: RefineMode::Full,
     };
     let twice = ReadOptions {
         iterations: 2,
@@ -211,13 +214,16 @@ fn a_roi_off_at_a_steep_markers_corners_reads_from_the_keypoints_found() {
             Some(found)
         };
         let first = read(&single);
-        let retried = read(&twice);
-        assert!(
-            first.is_none() || retried.is_some(),
-            "seed {seed}: the first pass read it, two passes did not"
-        );
+        if let Some(found) = read(&twice) {
+            // Said so where the first pass decoded nothing, and then confirmed by the
+            // alignment with the rendering.
+            assert_eq!(found.from_keypoints, first.is_none(), "seed {seed}");
+            if found.from_keypoints {
+                assert!(found.refinement.is_some_and(|r| r.refined), "seed {seed}");
+            }
+            with_retry += 1;
+        }
         first_only += usize::from(first.is_some());
-        with_retry += usize::from(retried.is_some());
     }
     // Measured: 31 of 48 by the first pass, 38 with the pass from its keypoints.
     assert!(
