@@ -191,45 +191,35 @@ impl Stage2 {
         rois: &[[[f64; 2]; 4]],
         options: &ReadOptions,
     ) -> Vec<Option<Stage2Result>> {
-        let mut retried = Vec::new();
-        let mut retry_rois = Vec::new();
-        let mut results: Vec<Option<Stage2Result>> = (self.read_batch(image, rois).into_iter())
-            .enumerate()
-            .map(|(i, outcome)| match outcome {
-                Ok(result) => Some(result),
-                Err(Some(roi)) if largest_corner_move(&roi, &rois[i]) >= MIN_RETRY_MOVE_PX => {
-                    retried.push(i);
-                    retry_rois.push(roi);
-                    None
-                }
-                Err(_) => None,
-            })
-            .collect();
-        // Only where the alignment with the rendering can confirm the frame such a read ends
-        // with (`continue_from`).
+        // Retries only where the alignment with the rendering can confirm the frame such a
+        // read ends with (`continue_from`).
         let confirmable = options.iterations >= 2 && options.refine == RefineMode::Full;
-        for _ in 0..RETRY_ROUNDS {
-            if !confirmable || retry_rois.is_empty() {
+        let retry_rounds = if confirmable { RETRY_ROUNDS } else { 0 };
+        let mut results: Vec<Option<Stage2Result>> = vec![None; rois.len()];
+        let (mut pending, mut pending_rois): (Vec<usize>, Vec<_>) =
+            (0..rois.len()).zip(rois.iter().copied()).unzip();
+        for round in 0..=retry_rounds {
+            if pending.is_empty() {
                 break;
             }
-            let (mut still_retried, mut still_rois) = (Vec::new(), Vec::new());
-            let outcomes = self.read_batch(image, &retry_rois);
-            for ((i, last), outcome) in retried.into_iter().zip(&retry_rois).zip(outcomes) {
+            let (mut still_pending, mut still_rois) = (Vec::new(), Vec::new());
+            let outcomes = self.read_batch(image, &pending_rois);
+            for ((i, last), outcome) in pending.into_iter().zip(&pending_rois).zip(outcomes) {
                 match outcome {
                     Ok(r) => {
                         results[i] = Some(Stage2Result {
-                            from_keypoints: true,
+                            from_keypoints: round > 0,
                             ..r
                         })
                     }
                     Err(Some(roi)) if largest_corner_move(&roi, last) >= MIN_RETRY_MOVE_PX => {
-                        still_retried.push(i);
+                        still_pending.push(i);
                         still_rois.push(roi);
                     }
                     Err(_) => {}
                 }
             }
-            (retried, retry_rois) = (still_retried, still_rois);
+            (pending, pending_rois) = (still_pending, still_rois);
         }
         results
     }
@@ -351,13 +341,9 @@ impl Stage2 {
             .ok()
     }
 
-    /// Post-processing of one patch's outputs; `to_image` maps patch pixels to the image.
-    pub fn decode_patch(&self, raw: &RawOutputs, to_image: &Homography) -> Option<Stage2Result> {
-        self.read_outputs(raw, to_image).ok()
-    }
-
-    /// [`Stage2::decode_patch`], or where it does not decode, the ROI its keypoints place in
-    /// the image when enough of them fit the template to place it.
+    /// Post-processing of one patch's outputs (`to_image` maps patch pixels to the image): the
+    /// marker, or where it does not decode, the ROI its keypoints place in the image when
+    /// enough of them fit the template to place it.
     fn read_outputs(&self, raw: &RawOutputs, to_image: &Homography) -> Readout {
         let family = &self.family;
         let reading = read_patch(family, &self.spec, raw).ok_or(None)?;
@@ -369,17 +355,16 @@ impl Stage2 {
                 enough.then(|| std::array::from_fn(|j| to_image.apply(to_patch.apply(roi[j]))))
             );
         };
-        self.result_of(family, &reading, decoded, to_image)
-            .ok_or(None)
+        self.result_of(&reading, decoded, to_image).ok_or(None)
     }
 
     fn result_of(
         &self,
-        family: &Family,
         reading: &PatchReading,
         decoded: Decoded,
         to_image: &Homography,
     ) -> Option<Stage2Result> {
+        let family = &self.family;
         let (found, sorted, read) = (&reading.found, &reading.sorted, &reading.read);
         let rotation = &family.rotations()[decoded.rotation];
         let kps = family.keypoints();
