@@ -30,6 +30,12 @@ for family in apriltag-36h11 aruco-6x6_250; do
     echo "== $name"
     $T eval score "$set_dir" "$f" -o "$out/report-$name" | grep -E "$rows" || true
   done
+  # Paired, marker by marker, against the baseline of the family's own detector: the markers
+  # each reads alone and a 95 % interval of the difference (65 Difficult markers: 1.5 points each).
+  base=opencv
+  [ "$family" = apriltag-36h11 ] && base=apriltag
+  echo "== Tagsmith (A) vs $base (B), the same markers"
+  $T eval compare "$set_dir" "$out/$family-tagsmith.json" "$out/$family-$base.json" | grep -E "$rows" || true
 done
 
 echo "== false positives: 200 marker-free 640×480 scenes"

@@ -32,4 +32,10 @@ for family in apriltag-36h11 aruco-6x6_250; do
     echo "== $name"
     $T eval score "$set_dir" "$f" -o "$out/report-$name" | grep -E '^\| (normal|difficult)' || true
   done
+  # Paired, marker by marker, against the baseline of the family's own detector.
+  base=opencv
+  [ "$family" = apriltag-36h11 ] && base=apriltag
+  echo "== Tagsmith (A) vs $base (B), the same markers"
+  $T eval compare "$set_dir" "$out/$family-tagsmith.json" "$out/$family-$base.json" |
+    grep -E '^\| (normal|difficult)' || true
 done

@@ -383,6 +383,55 @@ fn eval_score_refuses_sets_and_detections_that_cannot_be_scored() {
     }
 }
 
+/// Two detectors side by side: the one that misses the set's marker is counted against, and a
+/// detections file that cannot be scored is named.
+#[test]
+fn eval_compare_counts_the_markers_one_detector_reads_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (set, detections) = small_set(d);
+    let markers = set["images"][0]["truth"]["markers"]
+        .as_array()
+        .unwrap()
+        .len();
+    let mut missed = detections.clone();
+    missed["detector"] = json!("misses it");
+    missed["images"][0]["detections"] = json!([]);
+    std::fs::write(d.join("missed.json"), missed.to_string()).unwrap();
+    let run = tagsmith(
+        d,
+        &[
+            "eval",
+            "compare",
+            "set",
+            "d.json",
+            "missed.json",
+            "--json",
+            "c.json",
+        ],
+    );
+    run.ok();
+    let row = format!(
+        "| normal (≤ 50 cm, ≤ 60°) | {markers} | 100.0 % | 0.0 % | {markers} | 0 | +100.0 |"
+    );
+    assert!(run.stdout.contains(&row), "{}", run.stdout);
+    assert!(run.stdout.contains("B: misses it."), "{}", run.stdout);
+    let written: Value = serde_json::from_slice(&std::fs::read(d.join("c.json")).unwrap()).unwrap();
+    assert_eq!(
+        written["rows"][0]["only_a_markers"][0][0],
+        "images/000000.png"
+    );
+
+    let mut elsewhere = detections.clone();
+    elsewhere["images"][0]["file"] = json!("images/999999.png");
+    std::fs::write(d.join("elsewhere.json"), elsewhere.to_string()).unwrap();
+    refused(
+        d,
+        &["eval", "compare", "set", "d.json", "elsewhere.json"],
+        &["elsewhere.json", "999999"],
+    );
+}
+
 /// A set of a design that is no built-in carries its family file, so it still scores.
 #[test]
 fn eval_score_reads_the_family_kept_with_the_set() {

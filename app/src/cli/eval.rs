@@ -6,7 +6,7 @@ use anyhow::Context;
 use clap::{Args, Subcommand};
 use std::path::PathBuf;
 use tagsmith::detect::DetectionsFile;
-use tagsmith::eval::{score, set};
+use tagsmith::eval::{compare, score, set};
 
 #[derive(Subcommand, Debug)]
 pub enum EvalCommand {
@@ -14,6 +14,9 @@ pub enum EvalCommand {
     Generate(GenerateSetArgs),
     /// Score a detections JSON file against a benchmark set: report.json, report.md and plots.
     Score(ScoreArgs),
+    /// Two detections files of one set side by side, marker by marker: per subset the markers
+    /// each read alone and a 95 % interval of the recall difference (is a gap more than chance?).
+    Compare(CompareArgs),
     /// Write the ground truth as a detections file: the format's reference and a perfect score.
     Oracle(OracleArgs),
 }
@@ -23,6 +26,7 @@ impl EvalCommand {
         match self {
             EvalCommand::Generate(a) => a.run(),
             EvalCommand::Score(a) => a.run(),
+            EvalCommand::Compare(a) => a.run(),
             EvalCommand::Oracle(a) => a.run(),
         }
     }
@@ -85,33 +89,41 @@ pub struct ScoreArgs {
     pub output: Option<PathBuf>,
 }
 
+/// A set and the family its truth was drawn from.
+fn load_set(dir: &std::path::Path) -> Result<(set::BenchmarkSet, tagsmith::family::Family)> {
+    let s = set::load(dir)?;
+    // A set names the family its truth was drawn from; one that does not load is a broken
+    // manifest, not a reason to score without the family's geometry.
+    let kept = dir.join(SET_FAMILY_FILE);
+    let family = if kept.exists() {
+        load_family(&kept.display().to_string())?
+    } else {
+        load_family(&s.family)
+            .map_err(|e| e.concerning(format_args!("{}: family", dir.join("set.json").display())))?
+    };
+    if family.name() != s.family {
+        return Err(bad_input!(
+            "{}: family {:?} is not the set's {:?}",
+            kept.display(),
+            family.name(),
+            s.family
+        ));
+    }
+    Ok((s, family))
+}
+
+fn read_detections(path: &std::path::Path) -> Result<DetectionsFile> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("cannot read {}", path.display()))
+        .bad_input()?;
+    serde_json::from_str(&text).map_err(|e| bad_input!("{}: {e}", path.display()))
+}
+
 impl ScoreArgs {
     pub fn run(self) -> Result<()> {
         let (dir, detections) = (&self.set, &self.detections);
-        let s = set::load(dir)?;
-        let text = std::fs::read_to_string(detections)
-            .with_context(|| format!("cannot read {}", detections.display()))
-            .bad_input()?;
-        let file: DetectionsFile =
-            serde_json::from_str(&text).map_err(|e| bad_input!("{}: {e}", detections.display()))?;
-        // A set names the family its truth was drawn from; one that does not load is a broken
-        // manifest, not a reason to score without the family's geometry.
-        let kept = dir.join(SET_FAMILY_FILE);
-        let family = if kept.exists() {
-            load_family(&kept.display().to_string())?
-        } else {
-            load_family(&s.family).map_err(|e| {
-                e.concerning(format_args!("{}: family", dir.join("set.json").display()))
-            })?
-        };
-        if family.name() != s.family {
-            return Err(bad_input!(
-                "{}: family {:?} is not the set's {:?}",
-                kept.display(),
-                family.name(),
-                s.family
-            ));
-        }
+        let (s, family) = load_set(dir)?;
+        let file = read_detections(detections)?;
         let report = score::score(&s, Some(&family), &file).concerning(detections.display())?;
         let slug: String = file
             .detector
@@ -137,6 +149,46 @@ impl ScoreArgs {
         }
         print_quietly(&md);
         println!("\nwrote {}", out.display());
+        Ok(())
+    }
+}
+
+#[derive(Args, Debug)]
+pub struct CompareArgs {
+    /// Benchmark set folder (with set.json).
+    pub set: PathBuf,
+    /// Detections JSON of the first detector (A).
+    pub a: PathBuf,
+    /// Detections JSON of the second detector (B), on the same set.
+    pub b: PathBuf,
+    /// Also write the comparison (every marker read by one only) as JSON here.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}
+
+impl CompareArgs {
+    pub fn run(self) -> Result<()> {
+        let (s, family) = load_set(&self.set)?;
+        let a = read_detections(&self.a)?;
+        let b = read_detections(&self.b)?;
+        let scored = |path: &PathBuf, file: &DetectionsFile| {
+            // Scored one by one first, so a broken file is named.
+            score::score(&s, Some(&family), file)
+                .map(|_| ())
+                .concerning(path.display())
+        };
+        scored(&self.a, &a)?;
+        scored(&self.b, &b)?;
+        let comparison = compare::compare(&s, Some(&family), &a, &b)?;
+        if let Some(path) = &self.json {
+            write_output(
+                path,
+                serde_json::to_string_pretty(&comparison)
+                    .expect("serialises")
+                    .as_bytes(),
+            )?;
+        }
+        print_quietly(&comparison.markdown());
         Ok(())
     }
 }

@@ -13,6 +13,7 @@
 //! ```
 //! `pose` is optional: without it the scorer solves it from the four corners with the set's camera.
 
+pub mod compare;
 mod plot;
 pub mod score;
 pub mod set;

@@ -86,11 +86,13 @@ pub struct Report {
 }
 
 /// One image's outcome.
-struct Outcome {
+pub(super) struct Outcome {
     markers: usize,
     detections: usize,
     /// (position error m, rotation error deg, detected pose) per correct detection.
     correct: Vec<(f64, f64, Option<Pose>)>,
+    /// Whether each truth marker, in the set's order, was read (right ID, IoU ≥ 0.5).
+    pub(super) read: Vec<bool>,
     time_ms: f64,
 }
 
@@ -149,6 +151,7 @@ fn judge(
         markers: truth.len(),
         detections: detections.len(),
         correct,
+        read: used,
         time_ms,
     }
 }
@@ -260,11 +263,31 @@ fn check_detections(detections: &DetectionsFile) -> Result<(), EvalError> {
     Ok(())
 }
 
-pub fn score(
+/// A report row: its name and which images it holds.
+pub(super) type Subset = (&'static str, fn(&Group) -> bool);
+
+/// The rows every report (and every comparison) has, in order.
+pub(super) const SUBSETS: [Subset; 6] = [
+    ("normal (≤ 50 cm, ≤ 60°)", |g| {
+        matches!(g, Group::Protocol { normal: true, .. })
+    }),
+    ("difficult", |g| {
+        matches!(g, Group::Protocol { normal: false, .. })
+    }),
+    ("protocol, all", |g| matches!(g, Group::Protocol { .. })),
+    ("jitter", |g| matches!(g, Group::Jitter { .. })),
+    ("noise sweep", |g| matches!(g, Group::Noise { .. })),
+    ("motion-blur sweep", |g| {
+        matches!(g, Group::MotionBlur { .. })
+    }),
+];
+
+/// Each set image's group and what the detections file found in it, in the set's order.
+pub(super) fn outcomes(
     set: &BenchmarkSet,
     family: Option<&Family>,
     detections: &DetectionsFile,
-) -> Result<Report, EvalError> {
+) -> Result<Vec<(Group, Outcome)>, EvalError> {
     check_detections(detections)?;
     // `tagsmith detect SET/images/*.png --json` names images by the path it was given; an entry
     // counts for the set image whose path (relative to the set) it ends with.
@@ -292,7 +315,7 @@ pub fn score(
         })?;
         by_file.insert(file, i);
     }
-    let items: Vec<(Group, Outcome)> = set
+    Ok(set
         .images
         .iter()
         .map(|img| {
@@ -309,33 +332,26 @@ pub fn score(
                 ),
             )
         })
+        .collect())
+}
+
+pub fn score(
+    set: &BenchmarkSet,
+    family: Option<&Family>,
+    detections: &DetectionsFile,
+) -> Result<Report, EvalError> {
+    let items = outcomes(set, family, detections)?;
+    let rows = SUBSETS
+        .iter()
+        .map(|(name, holds)| {
+            let selected: Vec<&Outcome> = items
+                .iter()
+                .filter(|(g, _)| holds(g))
+                .map(|(_, o)| o)
+                .collect();
+            row(name, &selected)
+        })
         .collect();
-    let select = |f: &dyn Fn(&Group) -> bool| -> Vec<&Outcome> {
-        items.iter().filter(|(g, _)| f(g)).map(|(_, o)| o).collect()
-    };
-    let rows = vec![
-        row(
-            "normal (≤ 50 cm, ≤ 60°)",
-            &select(&|g| matches!(g, Group::Protocol { normal: true, .. })),
-        ),
-        row(
-            "difficult",
-            &select(&|g| matches!(g, Group::Protocol { normal: false, .. })),
-        ),
-        row(
-            "protocol, all",
-            &select(&|g| matches!(g, Group::Protocol { .. })),
-        ),
-        row("jitter", &select(&|g| matches!(g, Group::Jitter { .. }))),
-        row(
-            "noise sweep",
-            &select(&|g| matches!(g, Group::Noise { .. })),
-        ),
-        row(
-            "motion-blur sweep",
-            &select(&|g| matches!(g, Group::MotionBlur { .. })),
-        ),
-    ];
     let curves = vec![
         curve(
             "recall and error vs distance",
