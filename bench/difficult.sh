@@ -6,12 +6,15 @@
 # drawn from SEED (pick one nobody tuned on), and every detector reads the same images.
 # Needs bench/.venv (bench/setup.sh) and a release build:
 #   cargo build --release && bench/difficult.sh /tmp/difficult 31 5
-# (TAGSMITH=path/to/tagsmith runs another build of it.)
+# (TAGSMITH=path/to/tagsmith runs another build of it; SIDE_MM=25 prints smaller markers, ROWS=
+# 'normal|difficult|noise|motion' prints the sweeps' rows too: bench/scales.sh uses both.)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out=${1:?usage: bench/difficult.sh OUT_DIR [SEED] [PER_CELL]}
 seed=${2:-31}
 per_cell=${3:-5}
+side_mm=${SIDE_MM:-50}
+rows="^\\| (${ROWS:-normal|difficult})"
 T=${TAGSMITH:-target/release/tagsmith}
 PY=bench/.venv/bin/python
 mkdir -p "$out"
@@ -19,7 +22,8 @@ mkdir -p "$out"
 for family in apriltag-36h11 aruco-6x6_250; do
   set_dir="$out/$family"
   [ -f "$set_dir/set.json" ] ||
-    $T eval generate "$family" --seed "$seed" --per-cell "$per_cell" -o "$set_dir" >/dev/null
+    $T eval generate "$family" --side-mm "$side_mm" --seed "$seed" --per-cell "$per_cell" \
+      -o "$set_dir" >/dev/null
   detectors="opencv"
   [ "$family" = apriltag-36h11 ] && detectors="apriltag opencv"
   for d in $detectors; do
@@ -30,12 +34,12 @@ for family in apriltag-36h11 aruco-6x6_250; do
   for f in "$out/$family"-*.json; do
     name=$(basename "$f" .json)
     echo "== $name"
-    $T eval score "$set_dir" "$f" -o "$out/report-$name" | grep -E '^\| (normal|difficult)' || true
+    $T eval score "$set_dir" "$f" -o "$out/report-$name" | grep -E "$rows" || true
   done
   # Paired, marker by marker, against the baseline of the family's own detector.
   base=opencv
   [ "$family" = apriltag-36h11 ] && base=apriltag
   echo "== Tagsmith (A) vs $base (B), the same markers"
   $T eval compare "$set_dir" "$out/$family-tagsmith.json" "$out/$family-$base.json" |
-    grep -E '^\| (normal|difficult)' || true
+    grep -E "$rows" || true
 done

@@ -12,36 +12,8 @@ cd "$(dirname "$0")/.."
 out=${1:?usage: bench/scales.sh OUT_DIR [SEED] [PER_CELL]}
 seed=${2:-61}
 per_cell=${3:-2}
-sizes=${SIZES:-25 15 10}
-T=${TAGSMITH:-target/release/tagsmith}
-PY=bench/.venv/bin/python
-mkdir -p "$out"
 
-for side in $sizes; do
-  for family in apriltag-36h11 aruco-6x6_250; do
-    set_dir="$out/$side/$family"
-    [ -f "$set_dir/set.json" ] ||
-      $T eval generate "$family" --side-mm "$side" --seed "$seed" --per-cell "$per_cell" \
-        -o "$set_dir" >/dev/null
-    detectors="opencv"
-    [ "$family" = apriltag-36h11 ] && detectors="apriltag opencv"
-    for d in $detectors; do
-      # To a log, not /dev/null (see bench/detector.sh).
-      $PY bench/baselines.py "$set_dir" --detector $d -o "$out/$side/$family-$d.json" \
-        >"$out/$side/$family-$d.log"
-    done
-    $T detect-set "$set_dir" --full -o "$out/$side/$family-tagsmith.json" >/dev/null
-    for f in "$out/$side/$family"-*.json; do
-      name=$(basename "$f" .json)
-      echo "== $side mm: $name"
-      $T eval score "$set_dir" "$f" -o "$out/$side/report-$name" |
-        grep -E '^\| (normal|difficult|noise|motion)' || true
-    done
-    # Paired, marker by marker: Tagsmith against the baseline of the family's own detector.
-    base=opencv
-    [ "$family" = apriltag-36h11 ] && base=apriltag
-    echo "== $side mm: Tagsmith (A) vs $base (B), the same markers"
-    $T eval compare "$set_dir" "$out/$side/$family-tagsmith.json" "$out/$side/$family-$base.json" |
-      grep -E '^\| (normal|difficult|noise|motion)' || true
-  done
+for side in ${SIZES:-25 15 10}; do
+  echo "=== marker side $side mm"
+  SIDE_MM=$side ROWS='normal|difficult|noise|motion' bench/difficult.sh "$out/$side" "$seed" "$per_cell"
 done
