@@ -6,7 +6,7 @@
 //! two markers; this says, per subset, which markers each read alone and how far apart the two
 //! recalls can plausibly be on that many markers (a 95 % interval for the paired difference).
 
-use super::score::{outcomes, SUBSETS};
+use super::score::{outcomes, stats, Stats, SUBSETS};
 use super::set::BenchmarkSet;
 use super::EvalError;
 use crate::detect::DetectionsFile;
@@ -25,9 +25,20 @@ pub struct PairedRow {
     pub difference_points: f64,
     /// 95 % interval of that difference, in points.
     pub interval_points: (f64, f64),
-    /// The markers (image file, truth index) only A read, then those only B read.
+    /// The markers only A read, as (image file, index in its truth).
     pub only_a_markers: Vec<(String, usize)>,
+    /// The markers only B read.
     pub only_b_markers: Vec<(String, usize)>,
+    /// Pose errors on the markers both read with a pose (A's, then B's): the same markers, so
+    /// a detector that reads more hard ones is not charged for their poses.
+    pub both_errors: Option<PairedErrors>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PairedErrors {
+    pub markers: usize,
+    pub position_mm: (Stats, Stats),
+    pub rotation_deg: (Stats, Stats),
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -59,7 +70,11 @@ pub fn compare(
             interval_points: (0.0, 0.0),
             only_a_markers: Vec::new(),
             only_b_markers: Vec::new(),
+            both_errors: None,
         };
+        // (position m, rotation deg) of A's and of B's reads of the same markers.
+        let mut errors_a: Vec<(f64, f64)> = Vec::new();
+        let mut errors_b: Vec<(f64, f64)> = Vec::new();
         for ((image, (group, oa)), (_, ob)) in set.images.iter().zip(&read_a).zip(&read_b) {
             if !holds(group) {
                 continue;
@@ -67,10 +82,17 @@ pub fn compare(
             for (k, (&ra, &rb)) in oa.read.iter().zip(&ob.read).enumerate() {
                 row.markers += 1;
                 match (ra, rb) {
-                    (true, true) => row.both += 1,
-                    (true, false) => row.only_a_markers.push((image.file.clone(), k)),
-                    (false, true) => row.only_b_markers.push((image.file.clone(), k)),
-                    (false, false) => {}
+                    (Some(ea), Some(eb)) => {
+                        row.both += 1;
+                        let finite = |e: (f64, f64)| e.0.is_finite() && e.1.is_finite();
+                        if finite(ea) && finite(eb) {
+                            errors_a.push(ea);
+                            errors_b.push(eb);
+                        }
+                    }
+                    (Some(_), None) => row.only_a_markers.push((image.file.clone(), k)),
+                    (None, Some(_)) => row.only_b_markers.push((image.file.clone(), k)),
+                    (None, None) => {}
                 }
             }
         }
@@ -83,6 +105,20 @@ pub fn compare(
         let (difference, low, high) = paired_difference(row.both, row.only_a, row.only_b, neither);
         row.difference_points = 100.0 * difference;
         row.interval_points = (100.0 * low, 100.0 * high);
+        let position = |e: &[(f64, f64)]| stats(e.iter().map(|e| 1000.0 * e.0).collect());
+        let rotation = |e: &[(f64, f64)]| stats(e.iter().map(|e| e.1).collect());
+        if let (Some(pa), Some(pb), Some(ra), Some(rb)) = (
+            position(&errors_a),
+            position(&errors_b),
+            rotation(&errors_a),
+            rotation(&errors_b),
+        ) {
+            row.both_errors = Some(PairedErrors {
+                markers: errors_a.len(),
+                position_mm: (pa, pb),
+                rotation_deg: (ra, rb),
+            });
+        }
         rows.push(row);
     }
     Ok(Comparison {
@@ -177,6 +213,25 @@ impl Comparison {
         s += "\nThe interval (Newcombe's hybrid score interval for paired proportions) holds the \
               differences these markers cannot tell from the one measured; one marker is \
               100 / markers points.\n";
+        if self.rows.iter().any(|r| r.both_errors.is_some()) {
+            s += "\nPose errors on the markers both read, mean / median (A | B):\n\n";
+            s += "| subset | markers | position mm A | position mm B | rotation ° A | rotation ° B |\n";
+            s += "|---|---|---|---|---|---|\n";
+            let fmt = |st: &Stats| format!("{:.3} / {:.3}", st.mean, st.median);
+            for r in &self.rows {
+                if let Some(e) = &r.both_errors {
+                    s += &format!(
+                        "| {} | {} | {} | {} | {} | {} |\n",
+                        r.subset,
+                        e.markers,
+                        fmt(&e.position_mm.0),
+                        fmt(&e.position_mm.1),
+                        fmt(&e.rotation_deg.0),
+                        fmt(&e.rotation_deg.1)
+                    );
+                }
+            }
+        }
         for r in &self.rows {
             if r.subset == "protocol, all" {
                 continue;
@@ -215,7 +270,7 @@ mod tests {
             ..SetParams::default()
         };
         let set = generate(&family, &params, dir.path()).unwrap();
-        let file = |name: &str, skip: usize, wrong_id_in: usize| DetectionsFile {
+        let file = |name: &str, skip: usize, wrong_id_in: usize, shift_px: f64| DetectionsFile {
             detector: name.into(),
             images: set
                 .images
@@ -229,6 +284,9 @@ mod tests {
                     if i == wrong_id_in {
                         detections[0].id += 1;
                     }
+                    for d in &mut detections {
+                        d.corners[0][0] += shift_px;
+                    }
                     ImageDetections {
                         file: img.file.clone(),
                         time_ms: 1.0,
@@ -237,7 +295,8 @@ mod tests {
                 })
                 .collect(),
         };
-        let (a, b) = (file("A", usize::MAX, usize::MAX), file("B", 0, 2));
+        // B also places one corner of each marker 2 px off.
+        let (a, b) = (file("A", usize::MAX, usize::MAX, 0.0), file("B", 0, 2, 2.0));
         let c = compare(&set, Some(&family), &a, &b).unwrap();
         let noise = c.rows.iter().find(|r| r.subset == "noise sweep").unwrap();
         let markers: usize = set.images.iter().map(|i| i.truth.markers.len()).sum();
@@ -251,11 +310,16 @@ mod tests {
         assert_eq!(noise.only_a_markers[0], (set.images[0].file.clone(), 0));
         assert!(noise.difference_points > 0.0 && noise.interval_points.0 < 0.0);
         assert!(in_2 >= 1);
+        let poses = noise.both_errors.as_ref().unwrap();
+        assert_eq!(poses.markers, noise.both);
+        assert!(poses.position_mm.0.median < 0.05, "{poses:?}");
+        assert!(poses.position_mm.1.median > 2.0 * poses.position_mm.0.median + 0.05);
         let md = c.markdown();
         assert!(
             md.contains("read by A only") && md.contains(&set.images[2].file),
             "{md}"
         );
+        assert!(md.contains("Pose errors on the markers both read"), "{md}");
     }
 
     #[test]

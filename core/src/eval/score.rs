@@ -21,7 +21,7 @@ pub struct Stats {
     pub median: f64,
 }
 
-fn stats(mut v: Vec<f64>) -> Option<Stats> {
+pub(super) fn stats(mut v: Vec<f64>) -> Option<Stats> {
     if v.is_empty() {
         return None;
     }
@@ -91,8 +91,9 @@ pub(super) struct Outcome {
     detections: usize,
     /// (position error m, rotation error deg, detected pose) per correct detection.
     correct: Vec<(f64, f64, Option<Pose>)>,
-    /// Whether each truth marker, in the set's order, was read (right ID, IoU ≥ 0.5).
-    pub(super) read: Vec<bool>,
+    /// Each truth marker, in the set's order: `None` when unread, else its read's position
+    /// error (m) and rotation error (deg), NaN without a pose.
+    pub(super) read: Vec<Option<(f64, f64)>>,
     time_ms: f64,
 }
 
@@ -116,7 +117,7 @@ fn judge(
     detections: &[Detection],
     time_ms: f64,
 ) -> Outcome {
-    let mut used = vec![false; truth.len()];
+    let mut read: Vec<Option<(f64, f64)>> = vec![None; truth.len()];
     let mut correct = Vec::new();
     for d in detections {
         if !d.corners.iter().flatten().all(|v| v.is_finite()) {
@@ -124,10 +125,9 @@ fn judge(
         }
         let boxed = bounding_box(&d.corners);
         let hit = truth.iter().enumerate().find(|(i, t)| {
-            !used[*i] && t.id == d.id && iou(boxed, bounding_box(&t.roi[..4])) >= 0.5
+            read[*i].is_none() && t.id == d.id && iou(boxed, bounding_box(&t.roi[..4])) >= 0.5
         });
         let Some((i, t)) = hit else { continue };
-        used[i] = true;
         let detected = d.pose.as_ref().map(Pose::from).or_else(|| {
             let f = family?;
             let object = marker_plane_points(f, set.side_m, &f.roi_points()[..4]);
@@ -145,13 +145,14 @@ fn judge(
             }
             _ => (f64::NAN, f64::NAN),
         };
+        read[i] = Some(errors);
         correct.push((errors.0, errors.1, detected));
     }
     Outcome {
         markers: truth.len(),
         detections: detections.len(),
         correct,
-        read: used,
+        read,
         time_ms,
     }
 }
