@@ -35,7 +35,8 @@ for family in apriltag-36h11 aruco-6x6_250; do
   base=opencv
   [ "$family" = apriltag-36h11 ] && base=apriltag
   echo "== Tagsmith (A) vs $base (B), the same markers"
-  $T eval compare "$set_dir" "$out/$family-tagsmith.json" "$out/$family-$base.json" | grep -E "$rows" || true
+  $T eval compare "$set_dir" "$out/$family-tagsmith.json" "$out/$family-$base.json" |
+    grep -E "$rows|^Pose errors" || true
 done
 
 echo "== false positives: 200 marker-free 640×480 scenes"

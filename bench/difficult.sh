@@ -41,5 +41,5 @@ for family in apriltag-36h11 aruco-6x6_250; do
   [ "$family" = apriltag-36h11 ] && base=apriltag
   echo "== Tagsmith (A) vs $base (B), the same markers"
   $T eval compare "$set_dir" "$out/$family-tagsmith.json" "$out/$family-$base.json" |
-    grep -E "$rows" || true
+    grep -E "$rows|^Pose errors" || true
 done
