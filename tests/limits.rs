@@ -421,6 +421,13 @@ fn eval_compare_counts_the_markers_one_detector_reads_alone() {
         written["rows"][0]["only_a_markers"][0][0],
         "images/000000.png"
     );
+    // The other way round, the same markers count for B.
+    let run = tagsmith(d, &["eval", "compare", "set", "missed.json", "d.json"]);
+    run.ok();
+    let row = format!(
+        "| normal (≤ 50 cm, ≤ 60°) | {markers} | 0.0 % | 100.0 % | 0 | {markers} | -100.0 |"
+    );
+    assert!(run.stdout.contains(&row), "{}", run.stdout);
 
     let mut elsewhere = detections.clone();
     elsewhere["images"][0]["file"] = json!("images/999999.png");

@@ -169,17 +169,11 @@ pub struct CompareArgs {
 impl CompareArgs {
     pub fn run(self) -> Result<()> {
         let (s, family) = load_set(&self.set)?;
-        let a = read_detections(&self.a)?;
-        let b = read_detections(&self.b)?;
-        let scored = |path: &PathBuf, file: &DetectionsFile| {
-            // Scored one by one first, so a broken file is named.
-            score::score(&s, Some(&family), file)
-                .map(|_| ())
-                .concerning(path.display())
+        let reads = |path: &PathBuf| -> Result<compare::Reads> {
+            let file = read_detections(path)?;
+            compare::Reads::of(&s, Some(&family), &file).concerning(path.display())
         };
-        scored(&self.a, &a)?;
-        scored(&self.b, &b)?;
-        let comparison = compare::compare(&s, Some(&family), &a, &b)?;
+        let comparison = compare::compare(&s, &reads(&self.a)?, &reads(&self.b)?);
         if let Some(path) = &self.json {
             write_output(
                 path,
