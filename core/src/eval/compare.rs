@@ -46,12 +46,17 @@ pub struct Comparison {
     pub a: String,
     pub b: String,
     pub family: String,
+    /// The set's images, and how many of them A's and B's files list: an image a file leaves
+    /// out counts as read by nothing.
+    pub images: usize,
+    pub listed: (usize, usize),
     pub rows: Vec<PairedRow>,
 }
 
 /// One detections file matched against a set's truth, marker by marker.
 pub struct Reads {
     detector: String,
+    listed: usize,
     outcomes: Vec<(Group, Outcome)>,
 }
 
@@ -64,6 +69,7 @@ impl Reads {
     ) -> Result<Self, EvalError> {
         Ok(Reads {
             detector: detections.detector.clone(),
+            listed: detections.images.len(),
             outcomes: outcomes(set, family, detections)?,
         })
     }
@@ -80,6 +86,8 @@ pub fn compare(set: &BenchmarkSet, a: &Reads, b: &Reads) -> Comparison {
         a: a.detector.clone(),
         b: b.detector.clone(),
         family: set.family.clone(),
+        images: set.images.len(),
+        listed: (a.listed, b.listed),
         rows,
     }
 }
@@ -220,6 +228,17 @@ impl Comparison {
             "# A vs B on {}: the same markers\n\nA: {}. B: {}.\n\n",
             self.family, self.a, self.b
         );
+        // A file of another set with the same image names, or of a run cut short, pairs
+        // without an error; its missing images would read as the other detector's lead.
+        for (who, listed) in [("A", self.listed.0), ("B", self.listed.1)] {
+            if listed < self.images {
+                s += &format!(
+                    "**{who}'s file lists {listed} of the set's {} images**: the others count as \
+                     read by nothing.\n\n",
+                    self.images
+                );
+            }
+        }
         s += "| subset | markers | A | B | only A | only B | A − B (points) | 95 % interval |\n";
         s += "|---|---|---|---|---|---|---|---|\n";
         for r in &self.rows {
@@ -344,6 +363,16 @@ mod tests {
             "{md}"
         );
         assert!(md.contains("Pose errors on the markers both read"), "{md}");
+        assert!(!md.contains("file lists"), "{md}");
+        let mut short = b.clone();
+        short.images.pop();
+        let md = compare(&set, &reads(&a), &reads(&short)).markdown();
+        let listed = format!(
+            "B's file lists {} of the set's {}",
+            set.images.len() - 1,
+            set.images.len()
+        );
+        assert!(md.contains(&listed), "{md}");
     }
 
     #[test]
