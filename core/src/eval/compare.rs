@@ -6,7 +6,7 @@
 //! two markers; this says, per subset, which markers each read alone and how far apart the two
 //! recalls can plausibly be on that many markers (a 95 % interval for the paired difference).
 
-use super::score::{outcomes, stats, Outcome, Stats, SUBSETS};
+use super::score::{outcomes, stats, MarkerRead, Outcome, Stats, SUBSETS};
 use super::set::{BenchmarkSet, Group};
 use super::EvalError;
 use crate::detect::DetectionsFile;
@@ -112,8 +112,8 @@ fn paired_row(
         only_b_markers: Vec::new(),
         both_errors: None,
     };
-    // (position m, rotation deg) of A's and B's reads of each marker both read with a pose.
-    let mut errors: Vec<[(f64, f64); 2]> = Vec::new();
+    // A's and B's reads of each marker both read with a pose.
+    let mut errors: Vec<[MarkerRead; 2]> = Vec::new();
     let images = set.images.iter().zip(&a.outcomes).zip(&b.outcomes);
     for ((image, (group, oa)), (_, ob)) in images {
         if !holds(group) {
@@ -124,7 +124,9 @@ fn paired_row(
             match (ra, rb) {
                 (Some(ea), Some(eb)) => {
                     row.both += 1;
-                    if [ea.0, ea.1, eb.0, eb.1].iter().all(|v| v.is_finite()) {
+                    let finite =
+                        |r: &MarkerRead| r.position_m.is_finite() && r.rotation_deg.is_finite();
+                    if finite(&ea) && finite(&eb) {
                         errors.push([ea, eb]);
                     }
                 }
@@ -148,12 +150,19 @@ fn paired_row(
 }
 
 /// Both detectors' pose errors over the same markers; `None` without any.
-fn paired_errors(errors: &[[(f64, f64); 2]]) -> Option<PairedErrors> {
+fn paired_errors(errors: &[[MarkerRead; 2]]) -> Option<PairedErrors> {
     let of = |side: usize, mm: bool| {
         stats(
             errors
                 .iter()
-                .map(|e| if mm { 1000.0 * e[side].0 } else { e[side].1 })
+                .map(|e| {
+                    let r = &e[side];
+                    if mm {
+                        1000.0 * r.position_m
+                    } else {
+                        r.rotation_deg
+                    }
+                })
                 .collect(),
         )
     };

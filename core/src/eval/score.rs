@@ -87,14 +87,19 @@ pub struct Report {
 
 /// One image's outcome.
 pub(super) struct Outcome {
-    markers: usize,
     detections: usize,
-    /// (position error m, rotation error deg, detected pose) per correct detection.
-    correct: Vec<(f64, f64, Option<Pose>)>,
-    /// Each truth marker, in the set's order: `None` when unread, else its read's position
-    /// error (m) and rotation error (deg), NaN without a pose.
-    pub(super) read: Vec<Option<(f64, f64)>>,
+    /// Each truth marker, in the set's order: its correct detection, if any.
+    pub(super) read: Vec<Option<MarkerRead>>,
     time_ms: f64,
+}
+
+/// A truth marker's correct detection.
+#[derive(Clone, Copy)]
+pub(super) struct MarkerRead {
+    /// Position (m) and rotation (deg) error of its pose; NaN without one.
+    pub(super) position_m: f64,
+    pub(super) rotation_deg: f64,
+    pose: Option<Pose>,
 }
 
 fn iou(a: [f64; 4], b: [f64; 4]) -> f64 {
@@ -117,8 +122,7 @@ fn judge(
     detections: &[Detection],
     time_ms: f64,
 ) -> Outcome {
-    let mut read: Vec<Option<(f64, f64)>> = vec![None; truth.len()];
-    let mut correct = Vec::new();
+    let mut read: Vec<Option<MarkerRead>> = vec![None; truth.len()];
     for d in detections {
         if !d.corners.iter().flatten().all(|v| v.is_finite()) {
             continue;
@@ -135,7 +139,7 @@ fn judge(
                 .ok()
                 .map(|s| s.pose)
         });
-        let errors = match (detected, &t.pose) {
+        let (position_m, rotation_deg) = match (detected, &t.pose) {
             (Some(p), Some(tp)) => {
                 let truth_pose = Pose::from(&tp.pose);
                 (
@@ -145,26 +149,30 @@ fn judge(
             }
             _ => (f64::NAN, f64::NAN),
         };
-        read[i] = Some(errors);
-        correct.push((errors.0, errors.1, detected));
+        read[i] = Some(MarkerRead {
+            position_m,
+            rotation_deg,
+            pose: detected,
+        });
     }
     Outcome {
-        markers: truth.len(),
         detections: detections.len(),
-        correct,
         read,
         time_ms,
     }
 }
 
 fn row(subset: &str, outcomes: &[&Outcome]) -> Row {
-    let markers: usize = outcomes.iter().map(|o| o.markers).sum();
+    let markers: usize = outcomes.iter().map(|o| o.read.len()).sum();
     let detections: usize = outcomes.iter().map(|o| o.detections).sum();
-    let correct: usize = outcomes.iter().map(|o| o.correct.len()).sum();
-    let finite = |f: fn(&(f64, f64, Option<Pose>)) -> f64| -> Vec<f64> {
+    let correct: usize = outcomes
+        .iter()
+        .map(|o| o.read.iter().flatten().count())
+        .sum();
+    let finite = |f: fn(&MarkerRead) -> f64| -> Vec<f64> {
         outcomes
             .iter()
-            .flat_map(|o| o.correct.iter().map(f))
+            .flat_map(|o| o.read.iter().flatten().map(f))
             .filter(|v| v.is_finite())
             .collect()
     };
@@ -184,8 +192,8 @@ fn row(subset: &str, outcomes: &[&Outcome]) -> Row {
         } else {
             1.0
         },
-        position_error_mm: stats(finite(|c| c.0 * 1000.0)),
-        rotation_error_deg: stats(finite(|c| c.1)),
+        position_error_mm: stats(finite(|r| r.position_m * 1000.0)),
+        rotation_error_deg: stats(finite(|r| r.rotation_deg)),
         time_ms: outcomes.iter().map(|o| o.time_ms).sum::<f64>() / outcomes.len().max(1) as f64,
     }
 }
@@ -403,7 +411,7 @@ fn jitter(items: &[(Group, Outcome)]) -> Option<Jitter> {
             groups
                 .entry(*pose)
                 .or_default()
-                .extend(o.correct.iter().filter_map(|c| c.2));
+                .extend(o.read.iter().flatten().filter_map(|r| r.pose));
         }
     }
     let (mut pos, mut rot, mut n) = (0.0, 0.0, 0);
