@@ -14,9 +14,7 @@ out=${1:?usage: bench/difficult.sh OUT_DIR [SEED] [PER_CELL]}
 seed=${2:-31}
 per_cell=${3:-5}
 side_mm=${SIDE_MM:-50}
-rows="^\\| (${ROWS:-normal|difficult})"
 T=${TAGSMITH:-target/release/tagsmith}
-PY=bench/.venv/bin/python
 mkdir -p "$out"
 
 for family in apriltag-36h11 aruco-6x6_250; do
@@ -24,22 +22,5 @@ for family in apriltag-36h11 aruco-6x6_250; do
   [ -f "$set_dir/set.json" ] ||
     $T eval generate "$family" --side-mm "$side_mm" --seed "$seed" --per-cell "$per_cell" \
       -o "$set_dir" >/dev/null
-  detectors="opencv"
-  [ "$family" = apriltag-36h11 ] && detectors="apriltag opencv"
-  for d in $detectors; do
-    # To a log, not /dev/null (see bench/detector.sh).
-    $PY bench/baselines.py "$set_dir" --detector $d -o "$out/$family-$d.json" >"$out/$family-$d.log"
-  done
-  $T detect-set "$set_dir" --full -o "$out/$family-tagsmith.json" >/dev/null
-  for f in "$out/$family"-*.json; do
-    name=$(basename "$f" .json)
-    echo "== $name"
-    $T eval score "$set_dir" "$f" -o "$out/report-$name" | grep -E "$rows" || true
-  done
-  # Paired, marker by marker, against the baseline of the family's own detector.
-  base=opencv
-  [ "$family" = apriltag-36h11 ] && base=apriltag
-  echo "== Tagsmith (A) vs $base (B), the same markers"
-  $T eval compare "$set_dir" "$out/$family-tagsmith.json" "$out/$family-$base.json" |
-    grep -E "$rows|^Pose errors" || true
+  bench/side_by_side.sh "$set_dir" "$out/$family"
 done

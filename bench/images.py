@@ -32,7 +32,8 @@ def main():
     else:
         detect, name = opencv_detector(dictionary), f"OpenCV ArUco ({dictionary})"
     images = []
-    for path in sorted(glob.glob(os.path.join(a.folder, "[0-9]*.png"))):
+    paths = [p for ext in ("png", "jpg") for p in glob.glob(os.path.join(a.folder, f"[0-9]*.{ext}"))]
+    for path in sorted(paths):
         gray = cv2.imread(path, cv2.IMREAD_GRAYSCALE)
         start = cv2.getTickCount()
         found = detect(gray)

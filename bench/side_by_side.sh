@@ -1,0 +1,34 @@
+#!/usr/bin/env bash
+# Every detector on one benchmark set, scored by the same code: the baselines that know the set's
+# family (AprilTag 3 for AprilTag 36h11, OpenCV ArUco for both), Tagsmith's whole-image detector,
+# each scored by `tagsmith eval score`, then Tagsmith against the family's own baseline marker by
+# marker (`tagsmith eval compare`). Used by bench/difficult.sh and bench/foreign.sh.
+#   bench/side_by_side.sh SET_DIR OUT_PREFIX
+# writes OUT_PREFIX-{tagsmith,apriltag,opencv}.json and OUT_PREFIX-report-*; ROWS= 'normal|difficult'
+# (the default) picks the scored rows printed; TAGSMITH=path/to/tagsmith runs another build.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+set_dir=${1:?usage: bench/side_by_side.sh SET_DIR OUT_PREFIX}
+prefix=${2:?usage: bench/side_by_side.sh SET_DIR OUT_PREFIX}
+rows="^\\| (${ROWS:-normal|difficult})"
+T=${TAGSMITH:-target/release/tagsmith}
+PY=bench/.venv/bin/python
+
+family=$($PY -c 'import json, sys; print(json.load(open(sys.argv[1]))["family"])' "$set_dir/set.json")
+detectors="opencv"
+base=opencv
+if [ "$family" = apriltag-36h11 ]; then
+  detectors="apriltag opencv"
+  base=apriltag
+fi
+for d in $detectors; do
+  # To a log, not /dev/null (see bench/detector.sh).
+  $PY bench/baselines.py "$set_dir" --detector $d -o "$prefix-$d.json" >"$prefix-$d.log"
+done
+$T detect-set "$set_dir" --full -o "$prefix-tagsmith.json" >/dev/null
+for d in tagsmith $detectors; do
+  echo "== $(basename "$prefix")-$d"
+  $T eval score "$set_dir" "$prefix-$d.json" -o "$prefix-report-$d" | grep -E "$rows" || true
+done
+echo "== Tagsmith (A) vs $base (B), the same markers"
+$T eval compare "$set_dir" "$prefix-tagsmith.json" "$prefix-$base.json" | grep -E "$rows|^Pose errors" || true
