@@ -28,6 +28,13 @@ const MIN_RETRY_MOVE_PX: f64 = 1.0;
 /// 123 of 160, 3 rounds 127; dev noise sweeps 357 → 360 of 390).
 const RETRY_ROUNDS: usize = 3;
 
+/// The ROIs of one batch read again from their keypoints at most, the first ones (stage 1's best
+/// first): each costs up to [`RETRY_ROUNDS`] more passes, and a cluttered scene sends dozens of
+/// ROIs that decode nothing, nearly all of whose keypoints still fit half the template (scenes
+/// OpenCV drew, `bench/foreign.py`: 31 per image, 25 decodes from 4 353 more passes). The
+/// development sets' reads from keypoints all came from the first six of their batch.
+pub(super) const MAX_RETRIED_ROIS: usize = 6;
+
 /// A patch's read: the marker, or where it does not decode, the ROI its keypoints place.
 type Readout = Result<Stage2Result, Option<[[f64; 2]; 4]>>;
 
@@ -212,7 +219,10 @@ impl Stage2 {
                             ..r
                         })
                     }
-                    Err(Some(roi)) if largest_corner_move(&roi, last) >= MIN_RETRY_MOVE_PX => {
+                    Err(Some(roi))
+                        if largest_corner_move(&roi, last) >= MIN_RETRY_MOVE_PX
+                            && (round > 0 || still_pending.len() < MAX_RETRIED_ROIS) =>
+                    {
                         still_pending.push(i);
                         still_rois.push(roi);
                     }

@@ -195,19 +195,7 @@ fn a_roi_off_at_a_steep_markers_corners_reads_from_the_keypoints_found() {
     for seed in 0..seeds {
         let sample = synthesize(&family, &config, 1000 + seed).unwrap();
         let truth = &sample.truth.markers[0];
-        let r = &truth.roi;
-        let side = (0..4)
-            .map(|j| (r[(j + 1) % 4][0] - r[j][0]).hypot(r[(j + 1) % 4][1] - r[j][1]))
-            .fold(0.0, f64::max);
-        let push = side / 10.0;
-        // Each corner pushed its own way.
-        let angle = |j: usize| (seed as f64 * 1.7 + j as f64 * 2.3) % std::f64::consts::TAU;
-        let roi: [[f64; 2]; 4] = std::array::from_fn(|j| {
-            [
-                r[j][0] + push * angle(j).cos(),
-                r[j][1] + push * angle(j).sin(),
-            ]
-        });
+        let roi = pushed_roi(&truth.roi, seed);
         let read = |options: &ReadOptions| {
             let found = model.detect(&sample.image, &roi, options, None)?;
             assert_eq!(found.id, truth.id, "seed {seed}: another ID");
@@ -230,4 +218,63 @@ fn a_roi_off_at_a_steep_markers_corners_reads_from_the_keypoints_found() {
         with_retry >= first_only + 5,
         "first pass {first_only}, with the pass from its keypoints {with_retry} of {seeds}"
     );
+}
+
+/// A ROI off at each corner by a tenth of the marker's longest side, each its own way (`seed`
+/// turns the directions).
+fn pushed_roi(r: &[[f64; 2]], seed: u64) -> [[f64; 2]; 4] {
+    let side = (0..4)
+        .map(|j| (r[(j + 1) % 4][0] - r[j][0]).hypot(r[(j + 1) % 4][1] - r[j][1]))
+        .fold(0.0, f64::max);
+    let push = side / 10.0;
+    let angle = |j: usize| (seed as f64 * 1.7 + j as f64 * 2.3) % std::f64::consts::TAU;
+    std::array::from_fn(|j| {
+        [
+            r[j][0] + push * angle(j).cos(),
+            r[j][1] + push * angle(j).sin(),
+        ]
+    })
+}
+
+/// The reads from the keypoints are bounded per batch: a cluttered scene sends dozens of ROIs
+/// that decode nothing, and each would cost up to three more passes. The first ones of a batch
+/// (stage 1's best) are still read again; past them, a ROI gets its first pass only.
+#[test]
+fn a_batch_reads_only_its_first_rois_again_from_their_keypoints() {
+    use super::pipeline::MAX_RETRIED_ROIS;
+    let family = builtin::get("apriltag-36h11").unwrap().unwrap();
+    let model =
+        Stage2::from_bytes(shipped_model(family.name()).unwrap(), "shipped", &family).unwrap();
+    let config = one_marker_scene([0.4, 0.6], [60.0, 70.0], 3.0, 0.5);
+    let options = ReadOptions {
+        iterations: 2,
+        refine: RefineMode::Full,
+    };
+    // A ROI that only a read from its keypoints decodes (the test above: about ten in 48).
+    let (sample, roi) = (0..48)
+        .find_map(|seed| {
+            let sample = synthesize(&family, &config, 1000 + seed).unwrap();
+            let roi = pushed_roi(&sample.truth.markers[0].roi, seed);
+            let alone = model
+                .first_passes(&sample.image, &[roi], &options)
+                .pop()??;
+            alone.from_keypoints.then_some((sample, roi))
+        })
+        .expect("no ROI of 48 read only from its keypoints");
+    let id = sample.truth.markers[0].id;
+    let batch = vec![roi; MAX_RETRIED_ROIS + 2];
+    let reads = model.first_passes(&sample.image, &batch, &options);
+    for (k, read) in reads.iter().enumerate() {
+        if k < MAX_RETRIED_ROIS {
+            let read = read
+                .as_ref()
+                .unwrap_or_else(|| panic!("ROI {k} not read again"));
+            assert!(read.from_keypoints && read.id == id, "ROI {k}");
+        } else {
+            assert!(
+                read.is_none(),
+                "ROI {k} of the batch read again from its keypoints"
+            );
+        }
+    }
 }
