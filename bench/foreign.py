@@ -168,6 +168,8 @@ def place(rng, dictionary, marker_id, distance, tilt, taken):
 def paste(rng, img, sheet, h):
     big = np.linalg.inv(DOWN) @ h
     size = (W * SS, H * SS)
+    # Both warps fill with 0 outside the sheet, so at its edge the sheet's warp is already
+    # weighted by the coverage: composed premultiplied.
     warped = cv2.warpPerspective(sheet, big, size, flags=cv2.INTER_LINEAR)
     alpha = cv2.warpPerspective(np.ones_like(sheet), big, size, flags=cv2.INTER_LINEAR)
     if img.ndim == 3:
@@ -175,7 +177,7 @@ def paste(rng, img, sheet, h):
         tint = 1 - np.abs(rng.normal(0, 0.08, 3))
         warped, alpha = warped[..., None] * tint, alpha[..., None]
     img *= 1 - alpha
-    img += alpha * warped
+    img += warped
 
 
 def light_and_lens(rng, img):
