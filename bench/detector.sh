@@ -12,31 +12,14 @@ out=${1:?usage: bench/detector.sh OUT_DIR}
 T=target/release/tagsmith
 PY=bench/.venv/bin/python
 mkdir -p "$out"
-rows='^\| (normal|difficult|noise|motion|all)'
 
 for family in apriltag-36h11 aruco-6x6_250; do
   set_dir="$out/$family"
   [ -f "$set_dir/set.json" ] || $T eval generate "$family" -o "$set_dir" >/dev/null
-  detectors="opencv"
-  [ "$family" = apriltag-36h11 ] && detectors="apriltag opencv"
-  for d in $detectors; do
-    # To a log, not /dev/null: pupil-apriltags under this venv segfaults writing to /dev/null
-    # (2026-12-02; the same run to a file is fine).
-    $PY bench/baselines.py "$set_dir" --detector $d -o "$out/$family-$d.json" >"$out/$family-$d.log"
-  done
-  $T detect-set "$set_dir" --full -o "$out/$family-tagsmith.json"
-  for f in "$out/$family"-*.json; do
-    name=$(basename "$f" .json)
-    echo "== $name"
-    $T eval score "$set_dir" "$f" -o "$out/report-$name" | grep -E "$rows" || true
-  done
-  # Paired, marker by marker, against the baseline of the family's own detector: the markers
-  # each reads alone and a 95 % interval of the difference (65 Difficult markers: 1.5 points each).
-  base=opencv
-  [ "$family" = apriltag-36h11 ] && base=apriltag
-  echo "== Tagsmith (A) vs $base (B), the same markers"
-  $T eval compare "$set_dir" "$out/$family-tagsmith.json" "$out/$family-$base.json" |
-    grep -E "$rows|^Pose errors" || true
+  # Every detector, scored, then Tagsmith against the family's own baseline marker by marker: the
+  # markers each reads alone and a 95 % interval of the difference (65 Difficult markers: 1.5
+  # points each).
+  TAGSMITH=$T ROWS='normal|difficult|noise|motion' bench/side_by_side.sh "$set_dir" "$out/$family"
 done
 
 echo "== false positives: 200 marker-free 640×480 scenes"

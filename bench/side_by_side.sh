@@ -22,7 +22,8 @@ if [ "$family" = apriltag-36h11 ]; then
   base=apriltag
 fi
 for d in $detectors; do
-  # To a log, not /dev/null (see bench/detector.sh).
+  # To a log, not /dev/null: pupil-apriltags under this venv segfaults writing to /dev/null
+  # (2026-12-02; the same run to a file is fine).
   $PY bench/baselines.py "$set_dir" --detector $d -o "$prefix-$d.json" >"$prefix-$d.log"
 done
 $T detect-set "$set_dir" --full -o "$prefix-tagsmith.json" >/dev/null
