@@ -574,10 +574,16 @@ fn oversized_images_are_refused_before_decoding_in_bounded_time_and_memory() {
             assert!(mb < 512.0, "{file}: peak {mb:.0} MB");
         }
     }
-    // The limit can be raised: then the header-only file is refused as truncated instead.
+    // The limit can be raised up to its ceiling: then a header-only file is refused as
+    // truncated instead.
+    std::fs::write(
+        dir.path().join("claims-144.png"),
+        png_header(12_000, 12_000),
+    )
+    .unwrap();
     let run = tagsmith(
         dir.path(),
-        &detect_swarmathon_tag("claims.png", &["--max-pixels", "2000000000"]),
+        &detect_swarmathon_tag("claims-144.png", &["--max-pixels", "256000000"]),
     );
     assert_eq!(run.code, 2, "{}", run.stderr);
     assert!(

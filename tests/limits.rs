@@ -296,18 +296,14 @@ fn a_tiny_marker_side_in_a_family_file_names_the_field() {
 
 /// A one-image benchmark set (from `synth --mode camera`) and its oracle detections, as JSON.
 fn small_set(dir: &Path) -> (Value, Value) {
+    small_set_of(dir, "apriltag-16h5")
+}
+
+/// [`small_set`] of `family`.
+fn small_set_of(dir: &Path, family: &str) -> (Value, Value) {
     tagsmith(
         dir,
-        &[
-            "synth",
-            "apriltag-16h5",
-            "-n",
-            "1",
-            "--mode",
-            "camera",
-            "-o",
-            "s",
-        ],
+        &["synth", family, "-n", "1", "--mode", "camera", "-o", "s"],
     )
     .ok();
     let truth: Value =
@@ -315,7 +311,7 @@ fn small_set(dir: &Path) -> (Value, Value) {
     std::fs::create_dir_all(dir.join("set/images")).unwrap();
     std::fs::copy(dir.join("s/000000.png"), dir.join("set/images/000000.png")).unwrap();
     let set = json!({
-        "family": "apriltag-16h5",
+        "family": family,
         "side_m": truth["markers"][0]["pose"]["side_m"].as_f64().unwrap_or(0.05),
         "camera": truth["camera"],
         "seed": 0,
@@ -466,5 +462,266 @@ fn eval_score_reads_the_family_kept_with_the_set() {
         d,
         &["eval", "score", "set", "d.json"],
         &["family.json", "my-design"],
+    );
+}
+
+/// Runs `args` in `dir` like [`tagsmith`], but fails the test (killing the run) if it has not
+/// ended within `seconds`: the bound for any input.
+fn tagsmith_within(dir: &Path, args: &[&str], seconds: u64) -> Run {
+    use std::process::{Command, Stdio};
+    let mut child = Command::new(env!("CARGO_BIN_EXE_tagsmith"))
+        .args(args)
+        .current_dir(dir)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("the tagsmith binary runs");
+    // Drained on threads, so a chatty run cannot block on a full pipe.
+    let drain = |mut r: Box<dyn std::io::Read + Send>| {
+        std::thread::spawn(move || {
+            let mut text = Vec::new();
+            let _ = r.read_to_end(&mut text);
+            String::from_utf8_lossy(&text).into_owned()
+        })
+    };
+    let out = drain(Box::new(child.stdout.take().unwrap()));
+    let err = drain(Box::new(child.stderr.take().unwrap()));
+    let started = std::time::Instant::now();
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        if started.elapsed().as_secs() >= seconds {
+            child.kill().unwrap();
+            child.wait().unwrap();
+            panic!("{args:?} did not end within {seconds} s");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    };
+    Run {
+        code: status.code().unwrap_or(-1),
+        stdout: out.join().unwrap(),
+        stderr: err.join().unwrap(),
+    }
+}
+
+/// As [`refused`], within 20 s.
+fn refused_within(dir: &Path, args: &[&str], names: &[&str]) -> Run {
+    let run = tagsmith_within(dir, args, 20);
+    assert_eq!(run.code, 2, "{args:?}\nstderr: {}", run.stderr);
+    for name in names {
+        assert!(
+            run.stderr.contains(name),
+            "{args:?}: {name:?} not in {}",
+            run.stderr
+        );
+    }
+    assert!(!run.stderr.contains("panicked"), "{}", run.stderr);
+    run
+}
+
+#[test]
+fn codebook_generate_names_an_impossible_distance_and_its_range() {
+    let dir = tempfile::tempdir().unwrap();
+    let generate = |distance: &str, transitions: &str, expected: &[&str]| {
+        refused_within(
+            dir.path(),
+            &[
+                "codebook",
+                "generate",
+                "aruco-4x4_50",
+                "--min-distance",
+                distance,
+                "--min-transitions",
+                transitions,
+                "-o",
+                "c.json",
+            ],
+            expected,
+        );
+    };
+    // aruco-4x4_50 has 16 symbols.
+    generate("1000000000", "0", &["--min-distance", "0..=16"]);
+    generate("17", "0", &["--min-distance", "0..=16"]);
+    generate("3", "16", &["--min-transitions", "0..=15"]);
+    generate("3", "4000000000", &["--min-transitions", "0..=15"]);
+    assert!(!dir.path().join("c.json").exists());
+}
+
+#[test]
+fn a_set_whose_image_paths_leave_its_folder_is_refused_naming_the_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (set, _) = small_set(d);
+    let absolute = d.join("set/images/000000.png");
+    let absolute = absolute.to_str().unwrap();
+    for (file, why) in [
+        (absolute, "absolute"),
+        ("../set/images/000000.png", "leaves the set folder"),
+        (
+            "images/../../set/images/000000.png",
+            "leaves the set folder",
+        ),
+        ("", "empty"),
+    ] {
+        let mut s = set.clone();
+        s["images"][0]["file"] = json!(file);
+        std::fs::write(d.join("set/set.json"), s.to_string()).unwrap();
+        for args in [
+            vec!["eval", "score", "set", "d.json"],
+            vec!["eval", "oracle", "set", "-o", "o.json"],
+            vec!["detect-set", "set", "-o", "o.json"],
+        ] {
+            refused_within(d, &args, &["set.json", "images[0].file", why]);
+        }
+    }
+    // Inside the folder, however spelled, is fine.
+    let mut s = set.clone();
+    s["images"][0]["file"] = json!("./images//000000.png");
+    std::fs::write(d.join("set/set.json"), s.to_string()).unwrap();
+    tagsmith(d, &["eval", "score", "set", "d.json", "-o", "report"]).ok();
+    assert!(!d.join("o.json").exists());
+}
+
+/// The subnormal ROI that spun in the homography's SVD forever, as a set's ground truth: refused
+/// when the set is read, naming set.json, the field and the image.
+#[test]
+fn a_subnormal_truth_roi_is_bad_input_not_a_hang() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // A family with shipped weights, so that detect-set would reach stage 2 with the ROI.
+    let (set, _) = small_set_of(d, "apriltag-36h11");
+    let tiny = json!([[0.0, 0.0], [5e-324, 0.0], [5e-324, 5e-324], [0.0, 5e-324]]);
+    let bow_tie = json!([[0.0, 0.0], [100.0, 100.0], [100.0, 0.0], [0.0, 100.0]]);
+    for (roi, why) in [
+        (tiny, "subnormal"),
+        (bow_tie, "bow-tie"),
+        (json!([[0.0, 0.0], [1.0, 0.0]]), "2 points"),
+    ] {
+        let mut s = set.clone();
+        s["images"][0]["truth"]["markers"][0]["roi"] = roi;
+        std::fs::write(d.join("set/set.json"), s.to_string()).unwrap();
+        for args in [
+            vec!["detect-set", "set", "-o", "o.json"],
+            vec!["eval", "score", "set", "d.json"],
+        ] {
+            refused_within(
+                d,
+                &args,
+                &[
+                    "set.json",
+                    "images[0].truth.markers[0].roi",
+                    "images/000000.png",
+                    why,
+                ],
+            );
+        }
+    }
+    assert!(!d.join("o.json").exists());
+}
+
+/// `--roi` with subnormal corners ends (the ROI is refused before any solver, or no solver runs
+/// unbounded on it).
+#[test]
+fn a_subnormal_roi_ends_within_the_bound() {
+    let dir = tempfile::tempdir().unwrap();
+    let photo = workspace().join("assets/samples/apriltag-36h11-swarmathon.jpg");
+    let run = tagsmith_within(
+        dir.path(),
+        &[
+            "detect",
+            photo.to_str().unwrap(),
+            "--family",
+            "apriltag-36h11",
+            "--roi=0,0,5e-324,0,5e-324,5e-324,0,5e-324",
+        ],
+        20,
+    );
+    assert!(run.code == 0 || run.code == 2, "{}", run.stderr);
+    assert!(!run.stderr.contains("panicked"), "{}", run.stderr);
+}
+
+/// The same image under two spellings of its path: the later list silently replaced the earlier.
+#[test]
+fn eval_score_refuses_one_image_listed_under_two_spellings() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (_, detections) = small_set(d);
+    let through_the_set = d.join("set/images/000000.png");
+    for other in [
+        "./images/000000.png",
+        "images//000000.png",
+        "images/./000000.png",
+        "x/../images/000000.png",
+        through_the_set.to_str().unwrap(),
+    ] {
+        let mut f = detections.clone();
+        let mut second = f["images"][0].clone();
+        second["file"] = json!(other);
+        second["detections"] = json!([]);
+        f["images"].as_array_mut().unwrap().push(second);
+        std::fs::write(d.join("twice.json"), f.to_string()).unwrap();
+        for args in [
+            vec!["eval", "score", "set", "twice.json"],
+            vec!["eval", "compare", "set", "d.json", "twice.json"],
+        ] {
+            refused_within(
+                d,
+                &args,
+                &[
+                    "twice.json",
+                    "images[1].file",
+                    "\"images/000000.png\"",
+                    &format!("{other:?}"),
+                ],
+            );
+        }
+    }
+    assert!(!d.join("set/report-ground-truth").exists());
+}
+
+/// Set and detections files are read as regular files of a bounded size: a FIFO is not waited
+/// on, a device not read forever.
+#[cfg(unix)]
+#[test]
+fn eval_reads_no_fifo_or_device_as_set_or_detections() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    small_set(d);
+    let fifo = |path: &Path| {
+        let made = std::process::Command::new("mkfifo")
+            .arg(path)
+            .status()
+            .unwrap();
+        assert!(made.success());
+    };
+    fifo(&d.join("pipe.json"));
+    for (detections, why) in [("pipe.json", "FIFO"), ("/dev/zero", "device")] {
+        if !Path::new(detections).is_absolute() || Path::new(detections).exists() {
+            refused_within(d, &["eval", "score", "set", detections], &[detections, why]);
+            refused_within(
+                d,
+                &["eval", "compare", "set", "d.json", detections],
+                &[detections, why],
+            );
+        }
+    }
+    // A FIFO in place of set.json.
+    std::fs::rename(d.join("set/set.json"), d.join("set.json.kept")).unwrap();
+    fifo(&d.join("set/set.json"));
+    for args in [
+        vec!["eval", "score", "set", "d.json"],
+        vec!["eval", "oracle", "set", "-o", "o.json"],
+        vec!["detect-set", "set", "-o", "o.json"],
+    ] {
+        refused_within(d, &args, &["set.json", "FIFO"]);
+    }
+    // And a folder.
+    std::fs::remove_file(d.join("set/set.json")).unwrap();
+    std::fs::create_dir(d.join("set/set.json")).unwrap();
+    refused_within(
+        d,
+        &["eval", "score", "set", "d.json"],
+        &["set.json", "folder"],
     );
 }

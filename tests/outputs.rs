@@ -104,3 +104,28 @@ fn a_damaged_checkpoint_is_bad_input_naming_the_file() {
     assert_eq!(run.code, 2, "{}", run.stderr);
     assert!(run.stderr.contains("checkpoint.bin"), "{}", run.stderr);
 }
+
+/// An output folder that names an existing file (or lies under one) is the user's mistake:
+/// exit 2 naming the option, and the file is left as it was.
+#[test]
+fn an_output_folder_that_is_a_file_is_bad_input_naming_the_option() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("taken"), "mine").unwrap();
+    for args in [
+        vec!["synth", "apriltag-16h5", "-n", "1", "-o", "taken"],
+        vec!["synth", "apriltag-16h5", "-n", "1", "-o", "taken/sub"],
+        vec!["eval", "generate", "apriltag-16h5", "-o", "taken"],
+        vec!["eval", "generate", "apriltag-16h5", "-o", "taken/sub"],
+    ] {
+        let run = tagsmith(d, &args);
+        assert_eq!(run.code, 2, "{args:?}: {}", run.stderr);
+        assert!(
+            run.stderr.contains("--output") && run.stderr.contains("taken"),
+            "{args:?}: {}",
+            run.stderr
+        );
+        assert!(run.stderr.contains("not a folder"), "{}", run.stderr);
+    }
+    assert_eq!(std::fs::read_to_string(d.join("taken")).unwrap(), "mine");
+}

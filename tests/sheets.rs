@@ -133,6 +133,65 @@ fn many_svg_pages_are_numbered_files() {
         .contains("page 1 / "));
 }
 
+/// A shorter sheet written over a longer one of the same name: the old pages past the new count
+/// are removed (they would print with the new sheet), and nothing else is.
+#[test]
+fn a_shorter_svg_sheet_removes_the_stale_pages_of_a_longer_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sheet = |ids: &str| {
+        tagsmith(
+            d,
+            &[
+                "sheet",
+                "aruco-4x4_50",
+                "--ids",
+                ids,
+                "--size-mm",
+                "50",
+                "-o",
+                "p.svg",
+            ],
+        )
+        .ok();
+    };
+    let pages = || -> Vec<usize> {
+        let mut n: Vec<usize> = std::fs::read_dir(d)
+            .unwrap()
+            .filter_map(|e| {
+                let name = e.unwrap().file_name().into_string().unwrap();
+                let n = name.strip_prefix("p-")?.strip_suffix(".svg")?;
+                n.parse().ok().filter(|_| !n.starts_with('0'))
+            })
+            .collect();
+        n.sort_unstable();
+        n
+    };
+    sheet("0-49");
+    let long = pages();
+    assert!(long.len() >= 5, "{long:?}");
+    // Files that only look alike are not pages of the sheet.
+    for other in ["p-01.svg", "p-x.svg", "p-3.png", "q-9.svg", "notes.txt"] {
+        std::fs::write(d.join(other), "keep").unwrap();
+    }
+    sheet("0-9");
+    let short = pages();
+    assert!(short.len() >= 2 && short.len() < long.len(), "{short:?}");
+    assert_eq!(short, (1..=short.len()).collect::<Vec<_>>());
+    let last = std::fs::read_to_string(d.join(format!("p-{}.svg", short.len()))).unwrap();
+    assert!(
+        last.contains(&format!("page {} / {}", short.len(), short.len())),
+        "{last:.300}"
+    );
+    // One page is written as p.svg itself: no numbered page is left.
+    sheet("0");
+    assert!(pages().is_empty(), "{:?}", pages());
+    assert!(d.join("p.svg").exists());
+    for other in ["p-01.svg", "p-x.svg", "p-3.png", "q-9.svg", "notes.txt"] {
+        assert_eq!(std::fs::read_to_string(d.join(other)).unwrap(), "keep");
+    }
+}
+
 #[test]
 fn a_sheet_that_cannot_fit_one_marker_or_names_a_missing_id_is_refused() {
     let dir = tempfile::tempdir().unwrap();

@@ -1,8 +1,123 @@
-//! Writing files atomically: a reader (or a crash) never sees a half-written output; floats
-//! that JSON cannot hold ([`json_float`]); and a [`Stopwatch`] for per-stage timings.
+//! Reading inputs as regular files of a bounded size ([`read_input`]); writing files atomically:
+//! a reader (or a crash) never sees a half-written output; floats that JSON cannot hold
+//! ([`json_float`]); and a [`Stopwatch`] for per-stage timings.
 
-use std::io::Write;
+use std::io::{Read, Write};
 use std::path::Path;
+
+/// The most a text input (family, camera, set, detections, checkpoint file) may hold: the
+/// largest real one, a benchmark set of a thousand images, is a few MB.
+pub const MAX_TEXT_BYTES: u64 = 64 << 20;
+
+/// The most a model file may hold: the shipped models are under 1 MB, the widest network the
+/// trainer builds a few tens of MB.
+pub const MAX_MODEL_BYTES: u64 = 256 << 20;
+
+/// Opens `path` for reading if it is a regular file (a symlink to one counts).
+///
+/// A FIFO would block the open until some writer appears, a device (`/dev/zero`) never ends and
+/// a folder has no bytes: each is refused with [`std::io::ErrorKind::InvalidInput`] and a message
+/// naming what it is, before anything waits on it.
+pub fn open_input(path: &Path) -> std::io::Result<std::fs::File> {
+    refuse_unless_regular(&std::fs::metadata(path)?)?;
+    let file = std::fs::File::open(path)?;
+    // The path may have been swapped between the check and the open.
+    refuse_unless_regular(&file.metadata()?)?;
+    Ok(file)
+}
+
+/// The whole of a regular file of at most `limit` bytes ([`open_input`]); a larger one is refused
+/// with [`std::io::ErrorKind::FileTooLarge`] before it is read.
+pub fn read_input(path: &Path, limit: u64) -> std::io::Result<Vec<u8>> {
+    let file = open_input(path)?;
+    let size = file.metadata()?.len();
+    let too_large = || {
+        std::io::Error::new(
+            std::io::ErrorKind::FileTooLarge,
+            format!("the file is over the limit of {} MB", limit >> 20),
+        )
+    };
+    if size > limit {
+        return Err(too_large());
+    }
+    let mut bytes = Vec::new();
+    bytes.try_reserve_exact(size as usize).map_err(|_| {
+        std::io::Error::new(
+            std::io::ErrorKind::OutOfMemory,
+            format!("no memory for {size} bytes"),
+        )
+    })?;
+    // The file may grow while it is read: never past the limit.
+    file.take(limit + 1).read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > limit {
+        return Err(too_large());
+    }
+    Ok(bytes)
+}
+
+/// [`read_input`] as UTF-8 text; other bytes are refused with
+/// [`std::io::ErrorKind::InvalidData`].
+pub fn read_input_text(path: &Path, limit: u64) -> std::io::Result<String> {
+    String::from_utf8(read_input(path, limit)?).map_err(|e| {
+        std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!(
+                "the file is not UTF-8 text (byte {})",
+                e.utf8_error().valid_up_to()
+            ),
+        )
+    })
+}
+
+/// Whether an error from [`read_input`] or [`open_input`] is the input's fault (missing, not a
+/// regular file, too large, not text, not readable by this user) rather than the machine's (a
+/// disk that failed half-way, memory).
+pub fn is_bad_input(e: &std::io::Error) -> bool {
+    use std::io::ErrorKind as K;
+    matches!(
+        e.kind(),
+        K::NotFound
+            | K::PermissionDenied
+            | K::IsADirectory
+            | K::NotADirectory
+            | K::InvalidInput
+            | K::InvalidData
+            | K::FileTooLarge
+            | K::UnexpectedEof
+    )
+}
+
+fn refuse_unless_regular(meta: &std::fs::Metadata) -> std::io::Result<()> {
+    let kind = meta.file_type();
+    if kind.is_file() {
+        return Ok(());
+    }
+    if kind.is_dir() {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::IsADirectory,
+            "it is a folder, not a file",
+        ));
+    }
+    #[cfg(unix)]
+    let what = {
+        use std::os::unix::fs::FileTypeExt;
+        if kind.is_fifo() {
+            "a FIFO (named pipe)"
+        } else if kind.is_char_device() || kind.is_block_device() {
+            "a device"
+        } else if kind.is_socket() {
+            "a socket"
+        } else {
+            "not a regular file"
+        }
+    };
+    #[cfg(not(unix))]
+    let what = "not a regular file";
+    Err(std::io::Error::new(
+        std::io::ErrorKind::InvalidInput,
+        format!("it is {what}; only regular files are read"),
+    ))
+}
 
 /// Writes `bytes` to a temporary file beside `path`, flushes it to disk, then renames it over
 /// `path`. On any error the previous content of `path` is untouched.
@@ -349,6 +464,43 @@ mod tests {
             ours.exists(),
             "a live writer's temporary file is left alone"
         );
+    }
+
+    #[test]
+    fn inputs_are_regular_files_of_bounded_size() {
+        let dir = tempfile::tempdir().unwrap();
+        let small = dir.path().join("small.json");
+        std::fs::write(&small, b"{}").unwrap();
+        assert_eq!(read_input(&small, 2).unwrap(), b"{}");
+        let err = read_input(&small, 1).unwrap_err();
+        assert_eq!(err.kind(), std::io::ErrorKind::FileTooLarge);
+        assert!(is_bad_input(&err));
+        let err = read_input(dir.path(), 100).unwrap_err();
+        assert_eq!(err.kind(), std::io::ErrorKind::IsADirectory);
+        std::fs::write(&small, [0xff, 0xfe]).unwrap();
+        let err = read_input_text(&small, 100).unwrap_err();
+        assert!(
+            is_bad_input(&err) && err.to_string().contains("UTF-8"),
+            "{err}"
+        );
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_device_or_a_fifo_is_refused_without_waiting() {
+        if Path::new("/dev/zero").exists() {
+            let err = read_input(Path::new("/dev/zero"), 100).unwrap_err();
+            assert!(err.to_string().contains("a device"), "{err}");
+            assert!(is_bad_input(&err));
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = dir.path().join("pipe");
+        let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+        if made.is_ok_and(|s| s.success()) {
+            // Opening a FIFO with no writer would block forever.
+            let err = open_input(&fifo).unwrap_err();
+            assert!(err.to_string().contains("FIFO"), "{err}");
+        }
     }
 
     #[test]

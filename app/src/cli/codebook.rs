@@ -1,7 +1,7 @@
 //! `codebook stats`, `codebook generate` and `export-opencv`: the codes of a family.
 
 use super::common::{load_family, progress_bar, rotations_of, write_output};
-use super::error::{bad_input, Classify, Result};
+use super::error::{bad_input, Classify, CliError, Result};
 use clap::{Args, Subcommand};
 use std::path::PathBuf;
 use tagsmith::codebook::{self, Order};
@@ -68,7 +68,8 @@ impl StatsArgs {
 pub struct GenerateArgs {
     /// Built-in family name or path to a family JSON file (its layout and categories are kept).
     pub family: String,
-    /// Minimum Hamming distance over the rotations the layout cannot tell apart.
+    /// Minimum Hamming distance over the rotations the layout cannot tell apart [range:
+    /// 0..=the family's code length].
     #[arg(long)]
     pub min_distance: u32,
     /// Stop after this many codes [range: 1..=100000, the most a family file holds].
@@ -81,7 +82,7 @@ pub struct GenerateArgs {
     #[arg(long, default_value_t = 20_000_000,
           value_parser = clap::value_parser!(u64).range(1..=10_000_000_000))]
     pub max_candidates: u64,
-    /// Minimum symbol changes between consecutive code positions.
+    /// Minimum symbol changes between consecutive code positions [range: 0..=the code length − 1].
     #[arg(long, default_value_t = 0)]
     pub min_transitions: u32,
     /// Reject codes that equal one of their own rotations.
@@ -114,6 +115,24 @@ impl GenerateArgs {
         if let Some(why) = family::name_problem(&name) {
             return Err(bad_input!("--name: {why}"));
         }
+        // Both are bounded by the code length, which depends on the family; refused here they name
+        // their option and its range (the search would only report an impossible distance).
+        let len = family.code_len();
+        if self.min_distance as usize > len {
+            return Err(bad_input!(
+                "--min-distance {}: must be in 0..={len} (the code length of {})",
+                self.min_distance,
+                family.name()
+            ));
+        }
+        if self.min_transitions as usize >= len.max(1) {
+            return Err(bad_input!(
+                "--min-transitions {}: must be in 0..={} (one less than the code length of {})",
+                self.min_transitions,
+                len.saturating_sub(1),
+                family.name()
+            ));
+        }
         let mut params = family.generate_params(self.min_distance);
         params.max_codes = self.count;
         params.seed = self.seed;
@@ -133,6 +152,15 @@ impl GenerateArgs {
         let report = codebook::generate(&params, &mut |tried, kept| {
             bar.set_position(tried);
             bar.set_message(format!("{kept} codes"));
+        })
+        .map_err(|e| match e {
+            codebook::GenerateError::Distance { .. } => {
+                CliError::from(e).concerning("--min-distance")
+            }
+            codebook::GenerateError::Transitions { .. } => {
+                CliError::from(e).concerning("--min-transitions")
+            }
+            e => e.into(),
         })?;
         bar.finish_and_clear();
         let mut spec = family.spec().clone();

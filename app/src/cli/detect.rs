@@ -29,8 +29,8 @@ pub struct DetectArgs {
     /// Images: PNG, JPEG, BMP, TIFF, WebP or PNM (colour is converted to gray).
     #[arg(required = true)]
     pub images: Vec<PathBuf>,
-    /// Family to detect: built-in name or path to a family JSON file; repeat for several
-    /// [default: every built-in family with shipped weights].
+    /// Family to detect: built-in name or path to a family JSON file of at most 64 MB; repeat
+    /// for several [default: every built-in family with shipped weights].
     #[arg(long)]
     pub family: Vec<String>,
     /// Read one known ROI instead of searching the image (one image, one family): its 4 ROI
@@ -39,13 +39,15 @@ pub struct DetectArgs {
     #[arg(long)]
     pub roi: Option<String>,
     /// Camera intrinsics: JSON ({"width","height","fx","fy","cx","cy","distortion"}) or OpenCV
-    /// YAML [default: guessed from the image size and a 70° diagonal field of view].
+    /// YAML, for images of the size it names; at most 64 MB [default: guessed from the image
+    /// size and a 70° diagonal field of view].
     #[arg(long)]
     pub camera: Option<PathBuf>,
-    /// Stage-2 model file (one family) [default: the shipped weights of the family].
+    /// Stage-2 model file (one family; at most 256 MB) [default: the shipped weights of the
+    /// family].
     #[arg(long)]
     pub model: Option<PathBuf>,
-    /// Stage-1 model file [default: the shipped one for square families].
+    /// Stage-1 model file (at most 256 MB) [default: the shipped one for square families].
     #[arg(long)]
     pub stage1: Option<PathBuf>,
     /// Marker size in mm (ROI side) for the pose [default: each family's print size].
@@ -87,15 +89,23 @@ pub struct DetectArgs {
     /// on images with markers left unread or clutter).
     #[arg(long)]
     pub no_edge_fits: bool,
-    /// Write the detections file (the harness's format, for `tagsmith eval score`).
+    /// Write the detections file (the harness's format, for `tagsmith eval score`); images that
+    /// could not be detected are listed under "failed" with their error.
     #[arg(long)]
     pub json: Option<PathBuf>,
     /// Draw ROIs, outlines and keypoints: with --roi, the PNG to write; otherwise a folder that
-    /// receives IMAGE-STEM.png for each image.
+    /// receives IMAGE-STEM.png for each image (IMAGE-STEM-2.png, … where two images share a
+    /// stem or the name is one of the input images).
     #[arg(long)]
     pub annotate: Option<PathBuf>,
-    /// Refuse images larger than this many pixels (width × height) before decoding them.
-    #[arg(long, default_value_t = tagsmith::image::Limits::DEFAULT_MAX_PIXELS)]
+    /// Refuse images larger than this many pixels (width × height) before decoding them; with
+    /// --upsample the doubled image counts [range: 1..=256000000].
+    #[arg(
+        long,
+        default_value_t = tagsmith::image::Limits::DEFAULT_MAX_PIXELS,
+        value_parser = clap::builder::RangedU64ValueParser::<u64>::new()
+            .range(1..=tagsmith::image::MAX_PIXELS_CEILING)
+    )]
     pub max_pixels: u64,
     /// One image at a time (each image's time is then its latency, as benchmarks quote it);
     /// by default images are detected in parallel on all cores.
@@ -126,8 +136,10 @@ impl DetectArgs {
 
     fn side_mm(&self, family: &Family) -> Result<f64> {
         let side_mm = self.side_mm.unwrap_or(family.spec().print.marker_side_mm);
-        if side_mm.is_nan() || side_mm <= 0.0 {
-            return Err(bad_input!("--side-mm must be positive"));
+        if !(side_mm.is_finite() && side_mm > 0.0) {
+            return Err(bad_input!(
+                "--side-mm {side_mm}: the marker side must be a positive, finite length in mm"
+            ));
         }
         Ok(side_mm)
     }
@@ -153,6 +165,10 @@ impl DetectArgs {
         };
         let family = load_family(family)?;
         let roi = parse_roi(self.roi.as_deref().unwrap_or_default())?;
+        let inputs = Inputs::of(&self.images);
+        if let Some(path) = &self.annotate {
+            inputs.refuse_as_output("--annotate", path)?;
+        }
         let image = tagsmith::image::read(image_path, &self.limits())?;
         let (camera, camera_source) = self.camera_for(&image)?;
         let side_mm = self.side_mm(&family)?;
@@ -189,7 +205,10 @@ impl DetectArgs {
 
     fn camera_for(&self, image: &GrayImage) -> Result<(Camera, &'static str)> {
         Ok(match &self.camera {
-            Some(path) => (load_camera(path, (image.width, image.height))?, "given"),
+            Some(path) => (
+                parse_camera(path, &read_camera_file(path)?, (image.width, image.height))?,
+                "given",
+            ),
             None => (
                 Camera::from_diagonal_fov(image.width, image.height, 70.0)?,
                 "guessed (70° diagonal field of view)",
@@ -206,11 +225,24 @@ impl DetectArgs {
         detector: &Detector,
         path: &Path,
         camera: Option<(&Path, &str)>,
+        annotation: Option<&Path>,
     ) -> Result<(ImageDetections, String)> {
         let image = tagsmith::image::read(path, &self.limits())?;
         let camera = camera
             .map(|(file, text)| parse_camera(file, text, (image.width, image.height)))
-            .transpose()?;
+            .transpose()
+            .map_err(|e| e.concerning(path.display()))?;
+        if self.upsample {
+            let doubled = 4 * image.width as u64 * image.height as u64;
+            if doubled > self.max_pixels {
+                return Err(bad_input!(
+                    "{}: --upsample enlarges the image to {:.1} megapixels, over --max-pixels                      ({:.1} megapixels)",
+                    path.display(),
+                    doubled as f64 / 1e6,
+                    self.max_pixels as f64 / 1e6
+                ));
+            }
+        }
         let clock = std::time::Instant::now();
         let (found, timings) = detector.detect_with(&image, camera.as_ref());
         let time_ms = clock.elapsed().as_secs_f64() * 1e3;
@@ -233,14 +265,13 @@ impl DetectArgs {
             if timings.proposals == 1 { "" } else { "s" },
             timings.stage2_ms,
         );
-        if let Some(dir) = &self.annotate {
+        if let Some(annotation) = annotation {
             let overlays: Vec<Overlay> = found.iter().map(Found::overlay).collect();
             let png = annotate_all(&image, &overlays).failure()?;
-            let stem = path.file_stem().unwrap_or_default().to_string_lossy();
-            write_output(&dir.join(format!("{stem}.png")), &png)?;
+            write_output(annotation, &png)?;
         }
         let entry = ImageDetections {
-            file: path.display().to_string(),
+            file: path_as_given(path),
             time_ms,
             detections: found.iter().map(Found::detection).collect(),
         };
@@ -285,11 +316,34 @@ impl DetectArgs {
             .set_image_searches(!self.no_outline);
         detector.options.cell_reads = !self.no_cell_reads;
         detector.options.edge_fits = !self.no_edge_fits;
-        if let Some(dir) = &self.annotate {
-            std::fs::create_dir_all(dir)
-                .with_context(|| format!("cannot create the folder {}", dir.display()))
-                .failure()?;
+        // Every output is checked before the first image is read: a run that would replace one
+        // of its own inputs, or write into a file as if it were a folder, is refused whole.
+        let inputs = Inputs::of(&self.images);
+        if let Some(path) = &self.json {
+            if path.is_dir() {
+                return Err(bad_input!(
+                    "--json {}: it is a folder; give the detections file to write",
+                    path.display()
+                ));
+            }
+            inputs.refuse_as_output("--json", path)?;
         }
+        let annotations = match &self.annotate {
+            Some(dir) => {
+                if dir.exists() && !dir.is_dir() {
+                    return Err(bad_input!(
+                        "--annotate {}: it is a file; give the folder that receives the \
+                         annotated images",
+                        dir.display()
+                    ));
+                }
+                std::fs::create_dir_all(dir)
+                    .with_context(|| format!("cannot create the folder {}", dir.display()))
+                    .failure()?;
+                annotation_names(&self.images, dir, &inputs)
+            }
+            None => vec![None; self.images.len()],
+        };
         let bar = progress_bar(
             self.images.len() as u64,
             "{bar:30} {pos}/{len} [{elapsed_precise}, ETA {eta_precise}]",
@@ -297,11 +351,26 @@ impl DetectArgs {
         let name = BenchDetector::name(&detector);
         let camera_text = self.camera.as_deref().map(read_camera_file).transpose()?;
         let camera = self.camera.as_deref().zip(camera_text.as_deref());
+        if let Some((path, text)) = camera {
+            // A file that is no camera at all is one error, not one per image.
+            check_camera_file(path, text)?;
+        }
         // Images in parallel on all cores: the network's own kernels leave the second core idle
         // much of the time on small images.
         use rayon::prelude::*;
-        let one = |path: &PathBuf| {
-            let outcome = self.detect_one(&detector, path, camera);
+        let one = |(path, annotation): (&PathBuf, &Option<PathBuf>)| {
+            let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                self.detect_one(&detector, path, camera, annotation.as_deref())
+            }))
+            .unwrap_or_else(|_| {
+                // A fault of ours: the other images keep their results and the run says which
+                // image to report.
+                Err(failure!(
+                    "{}: internal error while detecting (the panic above); please report it \
+                     with this image",
+                    path.display()
+                ))
+            });
             match &outcome {
                 Ok((_, line)) => bar.suspend(|| println!("{line}")),
                 Err(e) => bar.suspend(|| eprintln!("error: {e:#}")),
@@ -309,20 +378,32 @@ impl DetectArgs {
             bar.inc(1);
             outcome.map(|(entry, _)| entry)
         };
+        let pairs = self.images.iter().zip(&annotations);
         let results: Vec<Result<ImageDetections>> = if self.sequential {
-            self.images.iter().map(one).collect()
+            pairs.map(one).collect()
         } else {
-            self.images.par_iter().with_max_len(1).map(one).collect()
+            let pairs: Vec<_> = pairs.collect();
+            pairs.into_par_iter().with_max_len(1).map(one).collect()
         };
-        let mut file = DetectionsFile {
-            detector: name,
-            images: Vec::new(),
+        let mut file = BatchDetections {
+            detections: DetectionsFile {
+                detector: name,
+                images: Vec::new(),
+            },
+            failed: Vec::new(),
         };
-        let mut unreadable = Vec::new();
-        for r in results {
+        let mut errors = Vec::new();
+        for (path, r) in self.images.iter().zip(results) {
             match r {
-                Ok(entry) => file.images.push(entry),
-                Err(e) => unreadable.push(e),
+                Ok(entry) => file.detections.images.push(entry),
+                Err(e) => {
+                    file.failed.push(FailedImage {
+                        file: path_as_given(path),
+                        error: format!("{e:#}"),
+                        exit_code: e.exit_code(),
+                    });
+                    errors.push(e);
+                }
             }
         }
         bar.finish_and_clear();
@@ -330,12 +411,20 @@ impl DetectArgs {
             let json = serde_json::to_string_pretty(&file).failure()?;
             write_output(path, json.as_bytes())?;
         }
-        match unreadable.len() {
-            0 => Ok(()),
-            n => Err(bad_input!(
-                "{n} of {} image(s) could not be read (named above); the others were detected",
-                self.images.len()
-            )),
+        if errors.is_empty() {
+            return Ok(());
+        }
+        let summary = format!(
+            "{} of {} image(s) failed (named above); the others were detected",
+            errors.len(),
+            self.images.len()
+        );
+        // Exit 1 only when the machine (or Tagsmith) failed on some image; bad images alone are
+        // the input's fault.
+        if errors.iter().all(|e| e.exit_code() == 2) {
+            Err(bad_input!("{summary}"))
+        } else {
+            Err(failure!("{summary}"))
         }
     }
 }
@@ -395,7 +484,12 @@ fn set_family(set: &Path, name: &str) -> Result<tagsmith::Family> {
     if kept.is_file() {
         load_family(&kept.to_string_lossy())
     } else {
-        load_family(name)
+        load_family(name).map_err(|e| {
+            e.concerning(format_args!(
+                "{}: field \"family\" (and the set keeps no family.json)",
+                set.join("set.json").display()
+            ))
+        })
     }
 }
 
@@ -512,17 +606,30 @@ fn parse_roi(text: &str) -> Result<[[f64; 2]; 4]> {
             "--roi {text:?}: expected 8 finite numbers x1,y1,x2,y2,x3,y3,x4,y4"
         ));
     }
-    Ok(std::array::from_fn(|i| [values[2 * i], values[2 * i + 1]]))
-}
-
-fn load_camera(path: &Path, size: (u32, u32)) -> Result<Camera> {
-    parse_camera(path, &read_camera_file(path)?, size)
+    let quad = std::array::from_fn(|i| [values[2 * i], values[2 * i + 1]]);
+    tagsmith::geometry::check_quad(&quad).map_err(|e| bad_input!("--roi {text:?}: {e}"))?;
+    Ok(quad)
 }
 
 fn read_camera_file(path: &Path) -> Result<String> {
-    std::fs::read_to_string(path)
-        .with_context(|| format!("cannot read {}", path.display()))
-        .bad_input()
+    tagsmith::io::read_input_text(path, tagsmith::io::MAX_TEXT_BYTES).map_err(|e| {
+        let message = format!("--camera {}: {e}", path.display());
+        if tagsmith::io::is_bad_input(&e) {
+            bad_input!("{message}")
+        } else {
+            failure!("{message}")
+        }
+    })
+}
+
+/// A camera file checked for everything but the image size, which each image's check does.
+fn check_camera_file(path: &Path, text: &str) -> Result<()> {
+    let size = match serde_json::from_str::<Camera>(text) {
+        Ok(camera) => (camera.width, camera.height),
+        // A YAML calibration without image_width/image_height takes each image's size.
+        Err(_) => (1, 1),
+    };
+    parse_camera(path, text, size).map(|_| ())
 }
 
 /// A camera file's text (`path` names it and says its format): JSON, or OpenCV YAML checked
@@ -539,7 +646,136 @@ fn parse_camera(path: &Path, text: &str, size: (u32, u32)) -> Result<Camera> {
     camera
         .validate()
         .map_err(|e| bad_input!("{}: {e}", path.display()))?;
+    if (camera.width, camera.height) != size {
+        return Err(bad_input!(
+            "{}: fields \"width\", \"height\": the camera is calibrated for {}×{} images, the \
+             image is {}×{}",
+            path.display(),
+            camera.width,
+            camera.height,
+            size.0,
+            size.1
+        ));
+    }
     Ok(camera)
+}
+
+/// What `detect --json` writes: the harness's detections file, and the images that failed.
+#[derive(serde::Serialize)]
+struct BatchDetections {
+    #[serde(flatten)]
+    detections: DetectionsFile,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    failed: Vec<FailedImage>,
+}
+
+#[derive(serde::Serialize)]
+struct FailedImage {
+    file: String,
+    error: String,
+    /// What the image alone would have made the command exit with: 2 for a bad image, 1 for a
+    /// failure of the machine or of Tagsmith.
+    exit_code: u8,
+}
+
+/// A path as the user gave it, as text: the same as its display where it is UTF-8; elsewhere
+/// each byte that is not UTF-8 is written `\xNN`, so two names that differ only there stay
+/// apart (a lossy conversion made both one replacement character).
+fn path_as_given(path: &Path) -> String {
+    if let Some(text) = path.to_str() {
+        return text.to_string();
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::ffi::OsStrExt;
+        let mut out = String::new();
+        for chunk in path.as_os_str().as_bytes().utf8_chunks() {
+            out.push_str(chunk.valid());
+            for byte in chunk.invalid() {
+                out.push_str(&format!("\\x{byte:02X}"));
+            }
+        }
+        out
+    }
+    #[cfg(not(unix))]
+    path.to_string_lossy().into_owned()
+}
+
+/// The files a run reads, so that no output of the run replaces one of them.
+struct Inputs {
+    files: Vec<FileId>,
+}
+
+/// A file's identity whatever path reaches it (a second spelling, a symlink, a hard link).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct FileId(u64, u64);
+
+impl FileId {
+    fn of(path: &Path) -> Option<Self> {
+        let meta = std::fs::metadata(path).ok()?;
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::MetadataExt;
+            Some(Self(meta.dev(), meta.ino()))
+        }
+        #[cfg(not(unix))]
+        {
+            let _ = meta;
+            let canonical = std::fs::canonicalize(path).ok()?;
+            use std::hash::{Hash, Hasher};
+            let mut h = std::collections::hash_map::DefaultHasher::new();
+            canonical.hash(&mut h);
+            Some(Self(0, h.finish()))
+        }
+    }
+}
+
+impl Inputs {
+    fn of(paths: &[PathBuf]) -> Self {
+        Self {
+            files: paths.iter().filter_map(|p| FileId::of(p)).collect(),
+        }
+    }
+
+    fn contains(&self, path: &Path) -> bool {
+        FileId::of(path).is_some_and(|id| self.files.contains(&id))
+    }
+
+    /// Refuses `path` as the output of `option` when it is one of the run's inputs.
+    fn refuse_as_output(&self, option: &str, path: &Path) -> Result<()> {
+        if self.contains(path) {
+            return Err(bad_input!(
+                "{option} {}: it is one of the input images, which the output would replace",
+                path.display()
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Where each image's annotated copy goes in `dir`: IMAGE-STEM.png, or IMAGE-STEM-2.png, -3, …
+/// when an earlier image of the run took that name or the name is one of the run's inputs.
+fn annotation_names(images: &[PathBuf], dir: &Path, inputs: &Inputs) -> Vec<Option<PathBuf>> {
+    let mut taken: Vec<PathBuf> = Vec::new();
+    images
+        .iter()
+        .map(|image| {
+            let stem = image.file_stem().unwrap_or_default();
+            let named = |suffix: String| {
+                let mut name = stem.to_os_string();
+                name.push(suffix);
+                dir.join(name)
+            };
+            let mut candidate = named(".png".into());
+            let mut k = 2;
+            while taken.contains(&candidate) || inputs.contains(&candidate) {
+                candidate = named(format!("-{k}.png"));
+                k += 1;
+            }
+            taken.push(candidate.clone());
+            Some(candidate)
+        })
+        .collect()
 }
 
 /// The model for `family`: the given file, or the weights shipped for it.

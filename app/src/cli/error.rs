@@ -171,6 +171,10 @@ impl From<EvalError> for CliError {
         match e {
             EvalError::Synth(e) => e.into(),
             EvalError::Write { .. } | EvalError::Encode { .. } => CliError::failure(e),
+            // A disk that fails half-way through a set is the machine's fault, not the set's.
+            EvalError::Read { ref source, .. } if !tagsmith::io::is_bad_input(source) => {
+                CliError::failure(e)
+            }
             EvalError::BadSide { .. }
             | EvalError::Read { .. }
             | EvalError::Json { .. }
@@ -197,17 +201,11 @@ impl<T, E: Into<CliError>> Concerning<T> for std::result::Result<T, E> {
 /// Names the kind of an error at the call site, for errors whose type does not tell it (core's
 /// plain messages, I/O wrapped with context).
 pub(crate) trait Classify<T> {
-    /// The input is wrong: exit 2.
-    fn bad_input(self) -> Result<T>;
     /// The input is fine but the output could not be produced: exit 1.
     fn failure(self) -> Result<T>;
 }
 
 impl<T, E: fmt::Display> Classify<T> for std::result::Result<T, E> {
-    fn bad_input(self) -> Result<T> {
-        self.map_err(CliError::bad_input)
-    }
-
     fn failure(self) -> Result<T> {
         self.map_err(CliError::failure)
     }

@@ -1,12 +1,13 @@
 //! `eval generate`, `eval score` and `eval oracle`: the evaluation harness.
 
 use super::common::{f64_in, load_family, print_quietly, write_output};
-use super::error::{bad_input, Classify, Concerning, Result};
+use super::error::{bad_input, failure, Classify, Concerning, Result};
 use anyhow::Context;
 use clap::{Args, Subcommand};
 use std::path::PathBuf;
 use tagsmith::detect::DetectionsFile;
 use tagsmith::eval::{compare, score, set};
+use tagsmith::io::{is_bad_input, read_input_text, MAX_TEXT_BYTES};
 
 #[derive(Subcommand, Debug)]
 pub enum EvalCommand {
@@ -58,6 +59,7 @@ impl GenerateSetArgs {
             seed: self.seed,
             ..set::SetParams::default()
         };
+        output_folder(&self.output, "--output")?;
         let started = std::time::Instant::now();
         let s = set::generate(&family, &params, &self.output)?;
         // The set carries its family, so a set of a design that is no built-in scores anywhere.
@@ -73,6 +75,32 @@ impl GenerateSetArgs {
         );
         Ok(())
     }
+}
+
+/// Refuses an output folder that names a file, or lies under one, as bad input naming `option`:
+/// creating the folder there would fail as if the disk had.
+fn output_folder(path: &std::path::Path, option: &str) -> Result<()> {
+    let mut at = Some(path);
+    while let Some(p) = at.filter(|p| !p.as_os_str().is_empty()) {
+        match std::fs::metadata(p) {
+            Ok(m) if m.is_dir() => return Ok(()),
+            Ok(_) if p == path => {
+                return Err(bad_input!(
+                    "{option} {}: it exists and is not a folder",
+                    path.display()
+                ))
+            }
+            Ok(_) => {
+                return Err(bad_input!(
+                    "{option} {}: {} is not a folder",
+                    path.display(),
+                    p.display()
+                ))
+            }
+            Err(_) => at = p.parent(),
+        }
+    }
+    Ok(())
 }
 
 /// The family file `eval generate` writes beside `set.json`.
@@ -112,10 +140,16 @@ fn load_set(dir: &std::path::Path) -> Result<(set::BenchmarkSet, tagsmith::famil
     Ok((s, family))
 }
 
+/// A detections file: a regular file of at most `MAX_TEXT_BYTES` (a FIFO is refused rather than
+/// waited on, `/dev/zero` rather than read forever).
 fn read_detections(path: &std::path::Path) -> Result<DetectionsFile> {
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("cannot read {}", path.display()))
-        .bad_input()?;
+    let text = read_input_text(path, MAX_TEXT_BYTES).map_err(|e| {
+        if is_bad_input(&e) {
+            bad_input!("cannot read {}: {e}", path.display())
+        } else {
+            failure!("cannot read {}: {e}", path.display())
+        }
+    })?;
     serde_json::from_str(&text).map_err(|e| bad_input!("{}: {e}", path.display()))
 }
 

@@ -42,7 +42,7 @@ impl FamiliesArgs {
 
 #[derive(Args, Debug)]
 pub struct ValidateArgs {
-    /// Family JSON file.
+    /// Family JSON file (at most 64 MB).
     pub file: PathBuf,
 }
 
@@ -83,5 +83,20 @@ impl SchemaArgs {
     pub fn run(self) -> Result<()> {
         print_quietly(&family::schema_json());
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_file_limit_in_the_help_is_the_one_applied() {
+        use clap::Args as _;
+        let help = ValidateArgs::augment_args(clap::Command::new("validate"))
+            .render_long_help()
+            .to_string();
+        let limit = tagsmith::io::MAX_TEXT_BYTES >> 20;
+        assert!(help.contains(&format!("(at most {limit} MB)")), "{help}");
     }
 }

@@ -1,10 +1,13 @@
 //! `render` and `sheet`: markers to SVG, PNG and printable pages.
 
 use super::common::{extension, f64_in, load_family, write_output};
-use super::error::{bad_input, CliError, Concerning, Result};
+use super::error::{bad_input, failure, Classify, CliError, Concerning, Result};
+use anyhow::Context;
 use clap::Args;
-use std::path::PathBuf;
-use tagsmith::render::sheet::{layout_sheet, parse_ids, PageSize, SheetParams, MAX_IDS};
+use std::path::{Path, PathBuf};
+use tagsmith::render::sheet::{
+    layout_sheet, parse_ids, stale_svg_pages, svg_page_name, PageSize, SheetParams, MAX_IDS,
+};
 use tagsmith::render::{marker_scene, pdf, raster, svg, RenderError, SceneOptions};
 
 /// The marker sizes a family file may declare (`print.marker_side_mm`): 1 mm to 2 m.
@@ -92,6 +95,28 @@ impl RenderArgs {
     }
 }
 
+/// Removes the `STEM-N.svg` pages beside `output` past the `pages` just written (0 when the
+/// sheet was one `STEM.svg`).
+fn remove_stale_pages(output: &Path, stem: &str, pages: usize) -> Result<()> {
+    let dir = output.parent().unwrap_or(Path::new(""));
+    let stale = stale_svg_pages(dir, stem, pages)
+        .with_context(|| format!("cannot list the old pages beside {}", output.display()))
+        .failure()?;
+    for path in stale {
+        match std::fs::remove_file(&path) {
+            Ok(()) => eprintln!("removed {}, a page of an earlier sheet", path.display()),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => {
+                return Err(failure!(
+                    "cannot remove {}, a page of an earlier sheet: {e}",
+                    path.display()
+                ))
+            }
+        }
+    }
+    Ok(())
+}
+
 #[derive(Args, Debug)]
 pub struct SheetArgs {
     /// Built-in family name or path to a family JSON file.
@@ -161,22 +186,32 @@ impl SheetArgs {
                 write_output(&self.output, &bytes)?;
                 vec![self.output.clone()]
             }
-            "svg" if sheet.pages.len() == 1 => {
-                write_output(&self.output, sheet.pages[0].as_bytes())?;
-                vec![self.output.clone()]
-            }
             "svg" => {
                 let stem = self
                     .output
                     .file_stem()
                     .and_then(|s| s.to_str())
                     .unwrap_or("sheet");
-                let mut out = Vec::new();
-                for (i, page) in sheet.pages.iter().enumerate() {
-                    let path = self.output.with_file_name(format!("{stem}-{}.svg", i + 1));
-                    write_output(&path, page.as_bytes())?;
-                    out.push(path);
-                }
+                let out = if sheet.pages.len() == 1 {
+                    write_output(&self.output, sheet.pages[0].as_bytes())?;
+                    vec![self.output.clone()]
+                } else {
+                    let mut out = Vec::new();
+                    for (i, page) in sheet.pages.iter().enumerate() {
+                        let path = self.output.with_file_name(svg_page_name(stem, i + 1));
+                        write_output(&path, page.as_bytes())?;
+                        out.push(path);
+                    }
+                    out
+                };
+                // Only once every new page is written: the pages of an earlier, longer sheet of
+                // the same name would otherwise print with this one.
+                let numbered = if sheet.pages.len() == 1 {
+                    0
+                } else {
+                    sheet.pages.len()
+                };
+                remove_stale_pages(&self.output, stem, numbered)?;
                 out
             }
             other => {

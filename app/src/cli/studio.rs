@@ -1,7 +1,8 @@
 //! `studio` (and no command at all): the studio window.
 
 use super::common::load_family;
-use super::error::{failure, Result};
+use super::error::{bad_input, failure, Result};
+use tagsmith_studio::studio::files::MAX_IMAGE_BYTES;
 use tagsmith_studio::studio::{detect, Panel};
 
 /// A bare name of one of the shipped samples (`--image aruco-6x6_250-tutorial.jpg`).
@@ -10,9 +11,22 @@ fn is_sample(path: &std::path::Path) -> bool {
     detect::SAMPLES.iter().any(|(n, _)| *n == name)
 }
 
+/// The file `--image` names: a regular file of at most [`MAX_IMAGE_BYTES`] (a FIFO would block
+/// before the window opens, a device never end).
+fn read_image(path: &std::path::Path) -> Result<Vec<u8>> {
+    tagsmith::io::read_input(path, MAX_IMAGE_BYTES).map_err(|e| {
+        if tagsmith::io::is_bad_input(&e) {
+            bad_input!("--image {}: cannot read the image: {e}", path.display())
+        } else {
+            failure!("--image {}: cannot read the image: {e}", path.display())
+        }
+    })
+}
+
 #[derive(clap::Args, Debug, Default)]
 pub struct StudioArgs {
-    /// Start designing from this family: a built-in (duplicated) or a family JSON file (edited).
+    /// Start designing from this family: a built-in (duplicated) or a family JSON file of at most
+    /// 64 MB (edited).
     pub family: Option<String>,
     /// The panel to show first.
     #[arg(long, value_enum)]
@@ -20,7 +34,8 @@ pub struct StudioArgs {
     /// Start from a clean slate instead of the design kept from the last session.
     #[arg(long)]
     pub fresh: bool,
-    /// Open this image in the Detect panel (or a shipped sample by its name in assets/samples/).
+    /// Open this image in the Detect panel (a file of at most 512 MB, or a shipped sample by its
+    /// name in assets/samples/).
     #[arg(long, value_name = "IMAGE")]
     pub image: Option<std::path::PathBuf>,
 }
@@ -53,8 +68,7 @@ impl StudioArgs {
         let image = match &self.image {
             Some(path) if !path.exists() && is_sample(path) => Some((path.clone(), None)),
             Some(path) => {
-                let bytes = std::fs::read(path)
-                    .map_err(|e| failure!("{}: cannot read the image: {e}", path.display()))?;
+                let bytes = read_image(path)?;
                 Some((path.clone(), Some(bytes)))
             }
             None => None,
@@ -104,5 +118,39 @@ impl StudioArgs {
                  command line: tagsmith --help"
             )
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_image_limit_in_the_help_is_the_one_applied() {
+        use clap::Args as _;
+        let help = StudioArgs::augment_args(clap::Command::new("studio"))
+            .render_long_help()
+            .to_string();
+        let help = help.split_whitespace().collect::<Vec<_>>().join(" ");
+        assert!(
+            help.contains(&format!("at most {} MB, or", MAX_IMAGE_BYTES >> 20)),
+            "{help}"
+        );
+        let text = tagsmith::io::MAX_TEXT_BYTES >> 20;
+        assert!(help.contains(&format!("at most {text} MB")), "{help}");
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn an_image_that_is_not_a_regular_file_is_bad_input_naming_the_option() {
+        let dir = tempfile::tempdir().unwrap();
+        let err = read_image(dir.path()).unwrap_err();
+        assert_eq!(err.exit_code(), 2);
+        assert!(err.to_string().starts_with("--image "), "{err}");
+        if std::path::Path::new("/dev/zero").exists() {
+            let err = read_image(std::path::Path::new("/dev/zero")).unwrap_err();
+            assert_eq!(err.exit_code(), 2);
+            assert!(err.to_string().contains("/dev/zero"), "{err}");
+        }
     }
 }

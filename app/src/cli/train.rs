@@ -9,6 +9,7 @@ use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use tagsmith::detect::stage1::pipeline::SHIPPED_STAGE1;
+use tagsmith::detect::stage2::model_file::{self, WIDTHS};
 use tagsmith::detect::stage2::{shipped_families, shipped_model};
 use tagsmith::train::stage::TrainStage;
 use tagsmith::train::stage1::RoiStage;
@@ -26,9 +27,13 @@ pub enum Stage {
 /// Bounds of the sizes a run may ask for. Memory grows with batch × width² (a batch of 100 000
 /// grew past 1.4 GB before its first step, a width of 100 000 aborted allocating), so each is
 /// capped well above any useful setting and refused before anything is built.
-const MAX_WIDTH: u64 = 256;
+///
+/// The widths and steps are those a model file may record ([`model_file::WIDTHS`],
+/// [`model_file::MAX_STEPS`]): a run makes no model that would not load.
+const MIN_WIDTH: u64 = *WIDTHS.start() as u64;
+const MAX_WIDTH: u64 = *WIDTHS.end() as u64;
 const MAX_BATCH: u64 = 256;
-const MAX_STEPS: u64 = 10_000_000;
+const MAX_STEPS: u64 = model_file::MAX_STEPS;
 const MAX_VALIDATION_PATCHES: u64 = 10_000;
 
 /// More synthesis threads than twice the cores only compete for them; 64 keeps small machines
@@ -38,10 +43,28 @@ fn max_workers() -> u64 {
     (2 * cores).max(64)
 }
 
-/// The model file `--init` names.
+/// The model file `--init` names: a regular file of at most [`tagsmith::io::MAX_MODEL_BYTES`].
 fn read_init(path: &str) -> Result<Vec<u8>> {
-    std::fs::read(path)
-        .map_err(|e| CliError::bad_input(format!("--init {path}: cannot read it: {e}")))
+    tagsmith::io::read_input(std::path::Path::new(path), tagsmith::io::MAX_MODEL_BYTES).map_err(
+        |e| {
+            let error = format!("--init {path}: cannot read it: {e}");
+            if tagsmith::io::is_bad_input(&e) {
+                CliError::bad_input(error)
+            } else {
+                CliError::failure(error)
+            }
+        },
+    )
+}
+
+/// A run's error with its exit code: a folder that another run holds, or that is a file, is the
+/// request's mistake (exit 2), as a checkpoint that cannot be resumed is.
+fn run_error(e: train::TrainError) -> CliError {
+    match e {
+        train::TrainError::InUse(_) => CliError::bad_input(e),
+        train::TrainError::NotAFolder(_) => CliError::bad_input(format_args!("--out {e}")),
+        e => e.into(),
+    }
 }
 
 fn unit_interval(text: &str) -> std::result::Result<f64, String> {
@@ -57,8 +80,9 @@ fn in_range(range: std::ops::RangeInclusive<u64>) -> RangedU64ValueParser<usize>
 
 #[derive(Args, Debug)]
 pub struct TrainArgs {
-    /// Built-in family name or path to a family JSON file (optional with `--stage roi`: without
-    /// one, stage 1 is trained for every square family and random designs).
+    /// Built-in family name or path to a family JSON file of at most 64 MB (optional with
+    /// `--stage roi`: without one, stage 1 is trained for every square family and random
+    /// designs).
     pub family: Option<String>,
     #[arg(long, value_enum)]
     pub stage: Stage,
@@ -70,15 +94,16 @@ pub struct TrainArgs {
     #[arg(long, default_value_t = TrainConfig::default().batch,
           value_parser = in_range(1..=MAX_BATCH))]
     pub batch: usize,
-    /// Output folder (checkpoint, model, report) [default: runs/FAMILY-keypoints, runs/roi].
+    /// Output folder (checkpoint, model, report) [default: runs/FAMILY-keypoints, runs/roi]. A run
+    /// locks it: a second run into the same folder stops at once.
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Continue from the output folder's checkpoint.
+    /// Continue from the output folder's checkpoint (at most 832 MB).
     #[arg(long)]
     pub resume: bool,
-    /// The weights to start from — a model file of the stage, `shipped` (the shipped model:
-    /// fine-tuning) or `none` (fresh weights) [default: `--stage roi` shipped with a FAMILY,
-    /// otherwise none]. The network's width is then the model's.
+    /// The weights to start from — a model file of the stage (at most 256 MB), `shipped` (the
+    /// shipped model: fine-tuning) or `none` (fresh weights) [default: `--stage roi` shipped with
+    /// a FAMILY, otherwise none]. The network's width is then the model's.
     #[arg(long)]
     pub init: Option<String>,
     /// `--stage keypoints`: the share of training patches cut from steep camera views, as the
@@ -88,7 +113,7 @@ pub struct TrainArgs {
     pub camera_patches: f64,
     /// Channels of the network's widest layers [range: 8..=256].
     #[arg(long, default_value_t = TrainConfig::default().width,
-          value_parser = in_range(8..=MAX_WIDTH))]
+          value_parser = in_range(MIN_WIDTH..=MAX_WIDTH))]
     pub width: usize,
     /// Adam's learning rate (it falls to a tenth over the last quarter of the steps)
     /// [range: (0, 1]].
@@ -310,7 +335,8 @@ fn with_progress<S: TrainStage>(
         }
         Event::Validated { step, metrics: m } => say(format!("step {step}: {}", metrics(&m))),
         Event::Checkpointed { .. } | Event::Pictured { .. } => {}
-    })?;
+    })
+    .map_err(run_error)?;
     bar.finish();
     println!(
         "{} steps in {:.0} s ({:.1} ms/step, {:.0} samples/s, data wait {:.1} %); model: {}",
@@ -322,4 +348,41 @@ fn with_progress<S: TrainStage>(
         report.model_file
     );
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_file_limits_in_the_help_are_the_ones_applied() {
+        use clap::Args as _;
+        let help = TrainArgs::augment_args(clap::Command::new("train"))
+            .render_long_help()
+            .to_string();
+        let help = help.split_whitespace().collect::<Vec<_>>().join(" ");
+        for (what, bytes) in [
+            ("family", tagsmith::io::MAX_TEXT_BYTES),
+            ("--init", tagsmith::io::MAX_MODEL_BYTES),
+            ("--resume", tagsmith::train::MAX_CHECKPOINT_BYTES),
+        ] {
+            let limit = format!("at most {} MB", bytes >> 20);
+            assert!(help.contains(&limit), "{what}: {limit} not in {help}");
+        }
+        let widths = format!("[range: {}..={}]", WIDTHS.start(), WIDTHS.end());
+        assert!(help.contains(&widths), "{help}");
+    }
+
+    #[test]
+    fn a_folder_in_use_or_that_is_a_file_is_bad_input() {
+        let busy = run_error(train::TrainError::InUse("r is in use".into()));
+        assert_eq!(busy.exit_code(), 2);
+        let file = run_error(train::TrainError::NotAFolder("r: it is a file".into()));
+        assert_eq!(
+            (file.exit_code(), file.to_string()),
+            (2, "--out r: it is a file".into())
+        );
+        let disk = run_error(train::TrainError::Output("r: disk full".into()));
+        assert_eq!(disk.exit_code(), 1);
+    }
 }

@@ -415,7 +415,7 @@ pub fn open_pasted(studio: &mut Studio, text: &str) {
     else {
         return;
     };
-    match std::fs::read(path) {
+    match tagsmith::io::read_input(std::path::Path::new(path), super::files::MAX_IMAGE_BYTES) {
         Ok(bytes) => open_image(
             studio,
             OpenedFile {

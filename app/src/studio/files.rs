@@ -15,6 +15,10 @@ pub enum Purpose {
     Image,
 }
 
+/// The largest image file the studio reads into memory: an uncompressed 16-bit RGBA image of
+/// the decoder's default 64 megapixels fits.
+pub const MAX_IMAGE_BYTES: u64 = 512 << 20;
+
 /// Extensions the image reader decodes.
 pub const IMAGE_EXTENSIONS: &[&str] = &[
     "png", "jpg", "jpeg", "bmp", "tif", "tiff", "webp", "pgm", "pnm", "ppm",
@@ -26,6 +30,15 @@ impl Purpose {
         match self {
             Purpose::Family | Purpose::CodeTable => ("JSON", &["json"]),
             Purpose::Image => ("Images", IMAGE_EXTENSIONS),
+        }
+    }
+
+    /// The most bytes a file for this purpose may hold: [`MAX_IMAGE_BYTES`] for an image,
+    /// [`tagsmith::io::MAX_TEXT_BYTES`] for a family or code table.
+    pub fn limit(self) -> u64 {
+        match self {
+            Purpose::Family | Purpose::CodeTable => tagsmith::io::MAX_TEXT_BYTES,
+            Purpose::Image => MAX_IMAGE_BYTES,
         }
     }
 }
@@ -66,11 +79,13 @@ pub trait FileAccess {
     fn accept_dropped(&mut self, file: egui::DroppedFileHandle) -> Result<(), String>;
 }
 
-/// Reads a picked file; a file that cannot be read arrives empty, under a name that says why, so
-/// that loading it reports the problem like any other bad file.
+/// Reads a picked file: a regular file of at most [`Purpose::limit`] bytes
+/// ([`tagsmith::io::read_input`]; a FIFO would block the studio, a device never end). A file
+/// that cannot be read arrives empty, under a name that says why, so that loading it reports the
+/// problem like any other bad file.
 #[cfg(not(target_arch = "wasm32"))]
 fn read_file(path: PathBuf, purpose: Purpose) -> OpenedFile {
-    match std::fs::read(&path) {
+    match tagsmith::io::read_input(&path, purpose.limit()) {
         Ok(bytes) => OpenedFile {
             purpose,
             name: path.display().to_string(),
@@ -86,12 +101,24 @@ fn read_file(path: PathBuf, purpose: Purpose) -> OpenedFile {
     }
 }
 
-/// Reads a dropped file where reading is synchronous (everywhere but a browser).
+/// Reads a dropped file where reading is synchronous (everywhere but a browser): one that is on
+/// disk as [`read_file`] does (a regular file of bounded size: a dropped FIFO would block the
+/// window), otherwise through its handle.
 #[cfg(not(target_arch = "wasm32"))]
 fn read_dropped(file: &egui::DroppedFileHandle) -> Result<OpenedFile, String> {
     let path = file.path().to_path_buf();
     let name = path.display().to_string();
-    let bytes = file.bytes().map_err(|e| format!("{name}: {e}"))?;
+    let bytes = if path.is_absolute() && std::fs::symlink_metadata(&path).is_ok() {
+        // Routed by its name once read: an image's limit for an image, a family's otherwise.
+        let purpose = if is_image_name(&name) {
+            Purpose::Image
+        } else {
+            Purpose::Family
+        };
+        tagsmith::io::read_input(&path, purpose.limit()).map_err(|e| format!("{name}: {e}"))?
+    } else {
+        file.bytes().map_err(|e| format!("{name}: {e}"))?
+    };
     Ok(OpenedFile {
         purpose: Purpose::Family,
         name,
@@ -117,7 +144,8 @@ pub fn user_families(files: &dyn FileAccess) -> Vec<OpenedFile> {
     paths
         .into_iter()
         .filter_map(|p| {
-            let bytes = std::fs::read(&p).ok()?;
+            // A FIFO or device named *.json in the folder must not hang the studio's start.
+            let bytes = tagsmith::io::read_input(&p, tagsmith::io::MAX_TEXT_BYTES).ok()?;
             Some(OpenedFile {
                 purpose: Purpose::Family,
                 name: p.display().to_string(),
@@ -342,5 +370,56 @@ impl FileAccess for WebFiles {
             }
         });
         Ok(())
+    }
+}
+
+#[cfg(all(test, unix))]
+mod tests {
+    use super::*;
+
+    fn mkfifo(path: &Path) -> bool {
+        let made = std::process::Command::new("mkfifo").arg(path).status();
+        made.is_ok_and(|s| s.success())
+    }
+
+    /// A FIFO picked, dropped or lying in the families folder would block the window on its
+    /// first read: it arrives empty under a name that says why, or not at all.
+    #[test]
+    fn a_fifo_is_never_read() {
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = dir.path().join("family.json");
+        if !mkfifo(&fifo) {
+            return;
+        }
+        let mut files = FolderFiles::new(dir.path());
+        files.to_open.push(fifo.clone());
+        files.request_open(Purpose::Family);
+        let opened = files.take_opened();
+        assert_eq!(opened.len(), 1);
+        assert!(
+            opened[0].bytes.is_empty() && opened[0].name.contains("FIFO"),
+            "{:?}",
+            opened[0].name
+        );
+
+        #[derive(Debug)]
+        struct Dropped(PathBuf);
+        impl egui::DroppedFile for Dropped {
+            fn path(&self) -> &Path {
+                &self.0
+            }
+            fn bytes(&self) -> Result<Vec<u8>, String> {
+                panic!("a file on disk is read through its path")
+            }
+        }
+        let handle: egui::DroppedFileHandle = std::sync::Arc::new(Dropped(fifo.clone()));
+        let err = files.accept_dropped(handle).unwrap_err();
+        assert!(err.contains("family.json") && err.contains("FIFO"), "{err}");
+
+        std::fs::write(dir.path().join("good.json"), b"{}").unwrap();
+        files.user_folder = Some(dir.path().to_path_buf());
+        let listed: Vec<String> = user_families(&files).into_iter().map(|f| f.name).collect();
+        assert_eq!(listed.len(), 1, "{listed:?}");
+        assert!(listed[0].ends_with("good.json"));
     }
 }

@@ -39,6 +39,7 @@ mod desktop {
     use std::sync::atomic::{AtomicBool, Ordering};
     use std::sync::{Arc, Mutex};
     use std::time::Instant;
+    use tagsmith::detect::stage2::model_file::{MAX_STEPS, WIDTHS};
     use tagsmith::family::Family;
     use tagsmith::train::stage::{Picture, TrainStage};
     use tagsmith::train::stage1::RoiStage;
@@ -325,9 +326,11 @@ mod desktop {
 
     impl RunSummary {
         pub fn read(folder: PathBuf) -> Self {
-            let report: Option<serde_json::Value> = std::fs::read(folder.join("report.json"))
-                .ok()
-                .and_then(|b| serde_json::from_slice(&b).ok());
+            // A regular file of bounded size: a FIFO in a runs folder must not hang the panel.
+            let report: Option<serde_json::Value> =
+                tagsmith::io::read_input(&folder.join("report.json"), tagsmith::io::MAX_TEXT_BYTES)
+                    .ok()
+                    .and_then(|b| serde_json::from_slice(&b).ok());
             let number = |v: &serde_json::Value, path: &str| v.pointer(path)?.as_f64();
             let steps = report.as_ref().and_then(|r| {
                 Some((
@@ -529,7 +532,7 @@ mod desktop {
                     });
                     ui.end_row();
                     let label = ui.label("Steps");
-                    ui.add(egui::DragValue::new(&mut s.steps).range(1..=10_000_000))
+                    ui.add(egui::DragValue::new(&mut s.steps).range(1..=MAX_STEPS))
                         .labelled_by(label.id);
                     ui.end_row();
                     let label = ui.label("Batch");
@@ -537,7 +540,7 @@ mod desktop {
                         .labelled_by(label.id);
                     ui.end_row();
                     let label = ui.label("Width");
-                    ui.add(egui::DragValue::new(&mut s.width).range(8..=256))
+                    ui.add(egui::DragValue::new(&mut s.width).range(WIDTHS))
                         .labelled_by(label.id);
                     ui.end_row();
                     let label = ui.label("Learning rate");

@@ -86,8 +86,15 @@ pub enum GenerateError {
     Alphabet { q: usize },
     #[error("code length {len} must be 1 to 4096")]
     Length { len: usize },
-    #[error("a minimum distance of {min_distance} is impossible with {len} symbols")]
+    #[error("a minimum distance of {min_distance} is impossible with {len} symbols: it must be in 0..={len}")]
     Distance { min_distance: u32, len: usize },
+    /// More symbol changes between neighbours than a code of `len` symbols has places for: no
+    /// candidate could pass, and the whole budget would be spent finding none.
+    #[error(
+        "a minimum of {min_transitions} transitions is impossible with {len} symbols: it must be in 0..={max}",
+        max = len.saturating_sub(1)
+    )]
+    Transitions { min_transitions: u32, len: usize },
     /// `rotation` counts the ambiguous rotations first, then the symmetry rotations.
     #[error("rotation {rotation} is not a permutation of the code positions")]
     NotAPermutation { rotation: usize },
@@ -208,6 +215,12 @@ fn check(p: &GenerateParams) -> Result<(), GenerateError> {
     if p.min_distance as usize > p.len {
         return Err(GenerateError::Distance {
             min_distance: p.min_distance,
+            len: p.len,
+        });
+    }
+    if p.min_transitions as usize >= p.len {
+        return Err(GenerateError::Transitions {
+            min_transitions: p.min_transitions,
             len: p.len,
         });
     }
@@ -470,5 +483,19 @@ mod tests {
         let mut params = GenerateParams::new(2, 4, 1);
         params.symmetry_rotations = vec![vec![0, 1, 2, 3], vec![0, 0, 1, 2]];
         assert_eq!(run(&params), GenerateError::NotAPermutation { rotation: 1 });
+        let mut params = GenerateParams::new(2, 16, 1);
+        params.min_transitions = 16;
+        let e = run(&params);
+        assert_eq!(
+            e,
+            GenerateError::Transitions {
+                min_transitions: 16,
+                len: 16
+            }
+        );
+        assert!(e.to_string().contains("0..=15"), "{e}");
+        assert!(run(&GenerateParams::new(2, 16, 1_000_000_000))
+            .to_string()
+            .contains("0..=16"));
     }
 }

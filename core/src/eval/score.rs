@@ -3,7 +3,7 @@
 //! Poses are compared in OpenCV ArUco's marker frame; a detection without a pose gets one from its
 //! four corners through the set's camera (the same PnP for every detector).
 
-use super::set::{BenchmarkSet, Group};
+use super::set::{normalise_path, BenchmarkSet, Group};
 use super::EvalError;
 use crate::detect::{Detection, DetectionsFile};
 use crate::family::Family;
@@ -236,18 +236,33 @@ fn by<K: Copy + PartialOrd + Into<f64>>(
     out
 }
 
-/// What scoring relies on in a detections file: each image listed once (a second list for the
-/// same image was silently dropped) and each pose's rotation a rotation (a zero matrix scored as
-/// a finite error).
+/// Two entries of a detections file for one image: the later one would silently replace the
+/// earlier.
+fn listed_twice(detections: &DetectionsFile, first: usize, second: usize) -> EvalError {
+    let (a, b) = (
+        &detections.images[first].file,
+        &detections.images[second].file,
+    );
+    let message = if a == b {
+        format!("{b:?} is listed twice")
+    } else {
+        format!("{b:?} is listed twice: images[{first}].file {a:?} is the same image")
+    };
+    EvalError::BadDetections {
+        field: format!("images[{second}].file"),
+        message,
+    }
+}
+
+/// What scoring relies on in a detections file: each image listed once, under any spelling of
+/// its path (a second list for the same image was silently dropped), and each pose's rotation a
+/// rotation (a zero matrix scored as a finite error).
 fn check_detections(detections: &DetectionsFile) -> Result<(), EvalError> {
     let bad = |field: String, message: String| EvalError::BadDetections { field, message };
-    let mut seen = std::collections::HashSet::new();
+    let mut seen = HashMap::new();
     for (i, img) in detections.images.iter().enumerate() {
-        if !seen.insert(img.file.as_str()) {
-            return Err(bad(
-                format!("images[{i}].file"),
-                format!("{:?} is listed twice", img.file),
-            ));
+        if let Some(first) = seen.insert(normalise_path(&img.file), i) {
+            return Err(listed_twice(detections, first, i));
         }
         for (j, d) in img.detections.iter().enumerate() {
             let Some(pose) = &d.pose else { continue };
@@ -308,27 +323,33 @@ pub(super) fn outcomes(
             .unwrap_or(&img.file);
         by_name.entry(name).or_default().push(img.file.as_str());
     }
+    // Compared as spelled one way (`./images//000001.png` is `images/000001.png`).
     let resolve = |file: &str| -> Option<&str> {
-        let path = Path::new(file);
+        let normal = normalise_path(file);
+        let path = Path::new(&normal);
         let name = path.file_name()?.to_str()?;
         by_name
             .get(name)?
             .iter()
             .copied()
-            .find(|s| *s == file || path.ends_with(s))
+            .find(|s| *s == file || path.ends_with(normalise_path(s)))
     };
-    let mut by_file: HashMap<&str, &crate::detect::ImageDetections> = HashMap::new();
-    for i in &detections.images {
+    let mut by_file: HashMap<&str, (usize, &crate::detect::ImageDetections)> = HashMap::new();
+    for (k, i) in detections.images.iter().enumerate() {
         let file = resolve(&i.file).ok_or_else(|| EvalError::UnknownImage {
             file: i.file.clone(),
         })?;
-        by_file.insert(file, i);
+        // Two spellings that name one set image (a relative path and one through the set's
+        // folder): the later would silently win.
+        if let Some((first, _)) = by_file.insert(file, (k, i)) {
+            return Err(listed_twice(detections, first, k));
+        }
     }
     Ok(set
         .images
         .iter()
         .map(|img| {
-            let found = by_file.get(img.file.as_str());
+            let found = by_file.get(img.file.as_str()).map(|(_, f)| *f);
             let dets = found.map_or(&[][..], |f| &f.detections[..]);
             (
                 img.group,
@@ -420,8 +441,14 @@ fn jitter(items: &[(Group, Outcome)]) -> Option<Jitter> {
         let mean_t = poses.iter().map(|p| p.translation).sum::<Vector3<f64>>() / k;
         // The rotation nearest to the mean matrix (chordal mean).
         let sum: Matrix3<f64> = poses.iter().map(|p| *p.rotation.matrix()).sum();
-        let svd = sum.svd(true, true);
-        let mut r = svd.u? * svd.v_t?;
+        // Capped, as every SVD here: a group whose mean does not decompose is left out.
+        let Ok(svd) = crate::geometry::svd_capped(sum, true, true, "mean rotation (SVD)") else {
+            continue;
+        };
+        let (Some(u), Some(v_t)) = (svd.u, svd.v_t) else {
+            continue;
+        };
+        let mut r = u * v_t;
         if r.determinant() < 0.0 {
             r = -r;
         }

@@ -254,10 +254,14 @@ fn render_set(family: &Family, params: &SetParams, dir: &Path) -> Result<Benchma
 }
 
 /// Reads `dir/set.json` and checks what scoring relies on: a positive marker side, a camera that
-/// projects, and each image listed once.
+/// projects, each image listed once (under any spelling of its path), every image path inside the
+/// set folder (relative, never climbing out with `..`: commands read the files it names), and each
+/// true ROI an outline geometry can work with ([`crate::geometry::check_quad_with_min_area`]; a
+/// far marker may cover under a pixel, so no least area). `set.json` is read as a regular file of
+/// at most [`crate::io::MAX_TEXT_BYTES`].
 pub fn load(dir: &Path) -> Result<BenchmarkSet, EvalError> {
     let path = dir.join("set.json");
-    let text = match std::fs::read_to_string(&path) {
+    let text = match crate::io::read_input_text(&path, crate::io::MAX_TEXT_BYTES) {
         Ok(text) => text,
         Err(source) => return Err(EvalError::Read { path, source }),
     };
@@ -276,16 +280,106 @@ pub fn load(dir: &Path) -> Result<BenchmarkSet, EvalError> {
     if let Err(e) = set.camera.validate() {
         return Err(bad("camera", e.to_string()));
     }
-    let mut seen = std::collections::HashSet::new();
+    let mut seen = std::collections::HashMap::new();
     for (i, img) in set.images.iter().enumerate() {
-        if !seen.insert(img.file.as_str()) {
-            return Err(bad(
-                &format!("images[{i}].file"),
-                format!("{:?} is listed twice", img.file),
-            ));
+        let field = format!("images[{i}].file");
+        if let Err(why) = check_image_path(&img.file) {
+            return Err(bad(&field, format!("{:?} {why}", img.file)));
+        }
+        if let Some(first) = seen.insert(normalise_path(&img.file), i) {
+            let message = if set.images[first].file == img.file {
+                format!("{:?} is listed twice", img.file)
+            } else {
+                format!(
+                    "{:?} is listed twice: images[{first}].file {:?} is the same image",
+                    img.file, set.images[first].file
+                )
+            };
+            return Err(bad(&field, message));
+        }
+        for (j, m) in img.truth.markers.iter().enumerate() {
+            let field = format!("images[{i}].truth.markers[{j}].roi");
+            let Some(quad) = m.roi.first_chunk::<4>() else {
+                return Err(bad(
+                    &field,
+                    format!(
+                        "{}: {} points; the 4 corners are needed",
+                        img.file,
+                        m.roi.len()
+                    ),
+                ));
+            };
+            if let Err(e) = crate::geometry::check_quad_with_min_area(quad, 0.0) {
+                return Err(bad(&field, format!("{}: {e}", img.file)));
+            }
         }
     }
     Ok(set)
+}
+
+/// A path as written, spelled one way: `.` components and repeated separators dropped, `a/..`
+/// folded away (lexically: the file need not exist, and symlinks are not followed). Two spellings
+/// of one image (`images/000001.png`, `./images//000001.png`) normalise alike.
+pub fn normalise_path(file: &str) -> String {
+    use std::path::Component;
+    let mut parts: Vec<Component> = Vec::new();
+    for c in Path::new(file).components() {
+        match c {
+            Component::CurDir => {}
+            Component::ParentDir if matches!(parts.last(), Some(Component::Normal(_))) => {
+                parts.pop();
+            }
+            c => parts.push(c),
+        }
+    }
+    let mut text = String::new();
+    for c in &parts {
+        match c {
+            Component::Prefix(p) => text.push_str(&p.as_os_str().to_string_lossy()),
+            Component::RootDir => text.push('/'),
+            c => {
+                if !(text.is_empty() || text.ends_with('/')) {
+                    text.push('/');
+                }
+                text.push_str(&c.as_os_str().to_string_lossy());
+            }
+        }
+    }
+    if text.is_empty() {
+        ".".into()
+    } else {
+        text
+    }
+}
+
+/// Why an image path of a set cannot be read relative to the set's folder, if it cannot:
+/// absolute, empty, or climbing out of the folder with `..`.
+fn check_image_path(file: &str) -> Result<(), &'static str> {
+    use std::path::Component;
+    let path = Path::new(file);
+    if file.is_empty() {
+        return Err("is empty; give the image's path relative to the set folder");
+    }
+    let mut depth = 0i64;
+    for c in path.components() {
+        match c {
+            Component::Prefix(_) | Component::RootDir => {
+                return Err("is an absolute path; image paths are relative to the set folder")
+            }
+            Component::ParentDir => {
+                depth -= 1;
+                if depth < 0 {
+                    return Err("leaves the set folder (..); image paths stay inside it");
+                }
+            }
+            Component::Normal(_) => depth += 1,
+            Component::CurDir => {}
+        }
+    }
+    if depth == 0 {
+        return Err("names the set folder itself, not an image in it");
+    }
+    Ok(())
 }
 
 impl BenchImage {

@@ -4,8 +4,9 @@ use super::spec::{FamilySpec, GridLayout, RingsLayout};
 use super::{Family, FamilyError, Problem};
 use std::path::Path;
 
-/// Largest family file accepted; a codebook of 100 000 codes of 1024 bits fits in well under this.
-const MAX_FILE_BYTES: usize = 64 * 1024 * 1024;
+/// Largest family file accepted ([`crate::io::MAX_TEXT_BYTES`], 64 MB); a codebook of 100 000
+/// codes of 1024 bits fits in well under this.
+const MAX_FILE_BYTES: usize = crate::io::MAX_TEXT_BYTES as usize;
 
 /// Parses and validates a family from JSON text. Errors carry JSON paths but no file name.
 pub fn from_json_str(text: &str) -> Result<Family, FamilyError> {
@@ -54,12 +55,12 @@ fn layout_problem(text: &str) -> Option<Problem> {
     Some(Problem::new(path, e.into_inner().to_string()))
 }
 
-/// Reads, parses and validates a family file; errors name the file.
+/// Reads, parses and validates a family file; errors name the file. Only a regular file of at
+/// most [`crate::io::MAX_TEXT_BYTES`] is read ([`crate::io::read_input_text`]): a FIFO, a device
+/// or a folder is refused before anything waits on it.
 pub fn load_file(path: &Path) -> Result<Family, FamilyError> {
-    let bytes = std::fs::read(path)
-        .map_err(|e| FamilyError::single("", format!("cannot read: {e}")).in_file(path))?;
-    let text = String::from_utf8(bytes)
-        .map_err(|e| FamilyError::single("", format!("not UTF-8 text: {e}")).in_file(path))?;
+    let text = crate::io::read_input_text(path, crate::io::MAX_TEXT_BYTES)
+        .map_err(|e| FamilyError::single("", format!("cannot read it: {e}")).in_file(path))?;
     from_json_str(&text).map_err(|e| e.in_file(path))
 }
 
@@ -76,4 +77,38 @@ pub fn schema_json() -> String {
     let mut s = serde_json::to_string_pretty(&schema).expect("a schema always serialises");
     s.push('\n');
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_family_file_that_is_not_a_regular_file_is_refused_naming_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let err = load_file(dir.path()).unwrap_err().to_string();
+        assert!(err.contains(&dir.path().display().to_string()), "{err}");
+        assert!(err.contains("folder"), "{err}");
+        #[cfg(unix)]
+        {
+            let fifo = dir.path().join("family.json");
+            let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+            if made.is_ok_and(|s| s.success()) {
+                // Reading a FIFO with no writer would block forever.
+                let err = load_file(&fifo).unwrap_err().to_string();
+                assert!(err.contains("family.json") && err.contains("FIFO"), "{err}");
+            }
+            if Path::new("/dev/zero").exists() {
+                let err = load_file(Path::new("/dev/zero")).unwrap_err().to_string();
+                assert!(err.contains("/dev/zero") && err.contains("device"), "{err}");
+            }
+        }
+        let binary = dir.path().join("binary.json");
+        std::fs::write(&binary, [b'{', 0xff, b'}']).unwrap();
+        let err = load_file(&binary).unwrap_err().to_string();
+        assert!(
+            err.contains("binary.json") && err.contains("UTF-8"),
+            "{err}"
+        );
+    }
 }

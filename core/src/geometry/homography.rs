@@ -13,6 +13,9 @@ impl Homography {
     /// mean distance of √2 before the SVD, which keeps the system well conditioned whatever the
     /// coordinate units (pixels, millimetres, cells). With more than four points it is the
     /// algebraic least-squares solution.
+    ///
+    /// Every coordinate must pass [`super::check_coordinate`] (finite, not subnormal, within
+    /// ±[`super::MAX_COORDINATE`]); the SVD is capped at [`super::SVD_MAX_ITERATIONS`].
     pub fn from_points(src: &[[f64; 2]], dst: &[[f64; 2]]) -> Result<Self, GeometryError> {
         super::check_correspondences(src, dst, 4)?;
         let (ts, ns) = normalise(src)?;
@@ -28,7 +31,9 @@ impl Homography {
         }
         // Four points give 8 equations; the zero row added above makes the SVD return all 9
         // right singular vectors.
-        let svd = a.svd(false, true);
+        // Capped: nalgebra's own `svd` iterates until convergence, and never returns on a
+        // matrix it cannot decompose.
+        let svd = super::svd_capped(a, false, true, "homography's SVD")?;
         let v_t = svd.v_t.ok_or(GeometryError::Degenerate)?;
         let sv = &svd.singular_values;
         let (mut smallest, mut second) = (0, 1);
@@ -145,5 +150,39 @@ mod tests {
             Homography::from_points(&nan, &sq),
             Err(GeometryError::NotFinite)
         ));
+    }
+
+    /// The `--roi` that spun in the SVD forever: the centring scale is 1/5e-324 = ∞.
+    #[test]
+    fn subnormal_and_huge_points_are_refused_at_once() {
+        let sq = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+        let tiny = [[0.0, 0.0], [5e-324, 0.0], [5e-324, 5e-324], [0.0, 5e-324]];
+        let started = std::time::Instant::now();
+        assert_eq!(
+            Homography::from_points(&sq, &tiny),
+            Err(GeometryError::Subnormal(5e-324))
+        );
+        assert_eq!(
+            Homography::from_points(&tiny, &sq),
+            Err(GeometryError::Subnormal(5e-324))
+        );
+        let huge = [[0.0, 0.0], [1e300, 0.0], [1e300, 1e300], [0.0, 1e300]];
+        assert_eq!(
+            Homography::from_points(&sq, &huge),
+            Err(GeometryError::TooLarge(1e300))
+        );
+        assert!(started.elapsed().as_secs_f64() < 1.0);
+    }
+
+    #[test]
+    fn the_capped_svd_reports_what_does_not_converge() {
+        let nan = nalgebra::DMatrix::<f64>::from_element(10, 9, f64::NAN);
+        assert_eq!(
+            crate::geometry::svd_capped(nan, false, true, "test").err(),
+            Some(GeometryError::NotFinite)
+        );
+        let m = Matrix3::new(2.0, 0.0, 0.0, 0.0, 3.0, 0.0, 0.0, 0.0, 1.0);
+        let svd = crate::geometry::svd_capped(m, true, true, "test").unwrap();
+        assert!((svd.singular_values.max() - 3.0).abs() < 1e-12);
     }
 }

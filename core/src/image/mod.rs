@@ -10,6 +10,10 @@ mod write;
 pub use read::{decode, read, ImageError, ImageErrorKind, Limits};
 pub use write::encode_png;
 
+/// The largest `Limits::max_pixels` the commands accept: at 8 bytes a pixel for the widest
+/// decoded layout (16-bit RGBA), 2 GB, within any machine that runs the detector.
+pub const MAX_PIXELS_CEILING: u64 = 256_000_000;
+
 /// An 8-bit grayscale image, row-major.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct GrayImage {

@@ -174,7 +174,7 @@ fn decompose(h: &Homography) -> Result<Pose, GeometryError> {
     let (r1, r2, t) = (h1 * lambda, h2 * lambda, h3 * lambda);
     let r = Matrix3::from_columns(&[r1, r2, r1.cross(&r2)]);
     // Nearest rotation matrix (the columns are only approximately orthonormal with noise).
-    let svd = r.svd(true, true);
+    let svd = crate::geometry::svd_capped(r, true, true, "pose's rotation fit (SVD)")?;
     let (u, v_t) = (
         svd.u.ok_or(GeometryError::Degenerate)?,
         svd.v_t.ok_or(GeometryError::Degenerate)?,

@@ -121,6 +121,19 @@ fn bad_input_is_an_error_not_a_panic() {
     ));
     let line = [[0.0, 0.0], [0.01, 0.0], [0.02, 0.0], [0.03, 0.0]];
     assert!(solve_planar(&c, &line, &img).is_err());
+    // Corners a detections file may hold: refused before any SVD, which never returned on them.
+    let started = std::time::Instant::now();
+    let tiny = [[0.0, 0.0], [5e-324, 0.0], [5e-324, 5e-324], [0.0, 5e-324]];
+    assert_eq!(
+        solve_planar(&c, &corners, &tiny).unwrap_err(),
+        GeometryError::Subnormal(5e-324)
+    );
+    let far = [[0.0, 0.0], [1e300, 0.0], [1e300, 1e300], [0.0, 1e300]];
+    assert_eq!(
+        solve_planar(&c, &corners, &far).unwrap_err(),
+        GeometryError::TooLarge(1e300)
+    );
+    assert!(started.elapsed().as_secs_f64() < 1.0);
     let mut bad = c;
     bad.fx = 0.0;
     assert!(matches!(

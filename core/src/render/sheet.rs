@@ -171,6 +171,51 @@ pub fn parse_ids(text: &str, max: usize) -> Result<Vec<usize>, SheetError> {
     Ok(ids)
 }
 
+/// The file name of page `page` (from 1) of a sheet of several SVG pages written as
+/// `STEM.svg`: `STEM-1.svg`, `STEM-2.svg`, …
+pub fn svg_page_name(stem: &str, page: usize) -> String {
+    format!("{stem}-{page}.svg")
+}
+
+/// The page files in `dir` that a sheet of `pages` numbered SVG pages named `stem` does not
+/// write, but a longer one of the same name did: `STEM-N.svg` with N > `pages`, exactly that
+/// pattern (N decimal, no leading zero), regular files only. A sheet written as a single
+/// `STEM.svg` has no numbered pages: `pages` is 0 and every `STEM-N.svg` is stale.
+pub fn stale_svg_pages(
+    dir: &std::path::Path,
+    stem: &str,
+    pages: usize,
+) -> std::io::Result<Vec<std::path::PathBuf>> {
+    let dir = if dir.as_os_str().is_empty() {
+        std::path::Path::new(".")
+    } else {
+        dir
+    };
+    let mut stale = Vec::new();
+    for entry in std::fs::read_dir(dir)? {
+        let entry = entry?;
+        let name = entry.file_name();
+        let Some(n) = name.to_str().and_then(|n| {
+            n.strip_prefix(stem)?
+                .strip_prefix('-')?
+                .strip_suffix(".svg")
+        }) else {
+            continue;
+        };
+        let numbered =
+            !n.is_empty() && !n.starts_with('0') && n.bytes().all(|b| b.is_ascii_digit());
+        // A number too long for usize is past any page count.
+        if numbered
+            && n.parse::<usize>().map_or(true, |n| n > pages)
+            && entry.file_type()?.is_file()
+        {
+            stale.push(entry.path());
+        }
+    }
+    stale.sort();
+    Ok(stale)
+}
+
 pub fn layout_sheet(family: &Family, params: &SheetParams) -> Result<Sheet, RenderError> {
     let page = params.page;
     let bad = |m: String| RenderError::Layout(m);
@@ -416,6 +461,39 @@ fn scale_bar(x: f64, y: f64, usable_w: f64) -> Group {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn stale_svg_pages_are_exactly_the_numbered_pages_past_the_count() {
+        let dir = tempfile::tempdir().unwrap();
+        for name in [
+            "p-1.svg",
+            "p-2.svg",
+            "p-3.svg",
+            "p-10.svg",
+            "p-03.svg",
+            "p-x.svg",
+            "p-.svg",
+            "p.svg",
+            "p-4.png",
+            "q-4.svg",
+            "p-2-1.svg",
+            "pp-4.svg",
+        ] {
+            std::fs::write(dir.path().join(name), "x").unwrap();
+        }
+        std::fs::create_dir(dir.path().join("p-7.svg")).unwrap();
+        let names = |pages| -> Vec<String> {
+            super::stale_svg_pages(dir.path(), "p", pages)
+                .unwrap()
+                .iter()
+                .map(|p| p.file_name().unwrap().to_str().unwrap().to_string())
+                .collect()
+        };
+        assert_eq!(names(2), ["p-10.svg", "p-3.svg"]);
+        assert_eq!(names(0), ["p-1.svg", "p-10.svg", "p-2.svg", "p-3.svg"]);
+        assert!(names(10).is_empty());
+        assert_eq!(super::svg_page_name("p", 3), "p-3.svg");
+    }
+
     use super::*;
 
     #[test]

@@ -17,6 +17,10 @@ use std::path::Path;
 
 const MAGIC: &[u8] = b"TAGSMITH-CHECKPOINT\n";
 
+/// The most a checkpoint file may hold: a model, the optimiser's two moments of each weight (as
+/// large again, twice) and the run's state as JSON.
+pub const MAX_CHECKPOINT_BYTES: u64 = 3 * crate::io::MAX_MODEL_BYTES + crate::io::MAX_TEXT_BYTES;
+
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Meta<M> {
     /// Steps done; the data stream resumes at sample `step × batch`.
@@ -55,7 +59,9 @@ pub fn save<M: Serialize>(
 
 pub fn load<M: DeserializeOwned>(path: &Path) -> Result<State<M>, String> {
     let name = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|e| format!("{name}: {e}"))?;
+    // A regular file of bounded size: a FIFO or a device in the folder must not hang the run.
+    let bytes = crate::io::read_input(path, MAX_CHECKPOINT_BYTES)
+        .map_err(|e| format!("{name}: cannot read the checkpoint: {e}"))?;
     let corrupt = || format!("{name}: not a Tagsmith checkpoint, or a damaged one");
     let (body, sum) = bytes
         .split_at_checked(bytes.len().saturating_sub(8))
@@ -71,8 +77,9 @@ pub fn load<M: DeserializeOwned>(path: &Path) -> Result<State<M>, String> {
             .get(..8)
             .map(|b| u64::from_le_bytes(b.try_into().expect("8 bytes")) as usize)
             .ok_or_else(corrupt)?;
-        let body = rest.get(8..8 + len).ok_or_else(corrupt)?;
-        rest = &rest[8 + len..];
+        let end = len.checked_add(8).ok_or_else(corrupt)?;
+        let body = rest.get(8..end).ok_or_else(corrupt)?;
+        rest = &rest[end..];
         Ok(body)
     };
     let meta: Meta<M> = serde_json::from_slice(next()?).map_err(|e| format!("{name}: {e}"))?;

@@ -9,9 +9,13 @@
 //!
 //! **Output folder.** `checkpoint.bin` (model + optimiser state + step, rewritten atomically every
 //! `checkpoint_every` steps, so a killed run loses at most that many steps), `model.bin` (the
-//! final weights, the format of [`crate::detect::stage2::model_file`]) and `report.json`.
+//! final weights, the format of [`crate::detect::stage2::model_file`]) and `report.json`. A run
+//! holds an exclusive lock on the folder's [`LOCK_FILE`] from start to end ([`OutDir::lock`]), so
+//! a second run into the same folder stops at once instead of mixing its checkpoints with the
+//! first's; the operating system releases the lock when a run ends, however it ends.
 
 mod checkpoint;
+pub use checkpoint::MAX_CHECKPOINT_BYTES;
 pub mod loader;
 pub mod stage;
 pub mod stage1;
@@ -151,6 +155,22 @@ pub enum TrainError {
     /// The synthesiser could not make a sample.
     #[error("{0}")]
     Data(String),
+    /// Another run holds the output folder's lock.
+    #[error("{0}")]
+    InUse(String),
+    /// The output folder is a file (or lies below one).
+    #[error("{0}")]
+    NotAFolder(String),
+}
+
+/// The lock file a run holds in its output folder ([`OutDir::lock`]). It stays after the run:
+/// removing it would let a run that opened it just before lock a file no other run can see.
+pub const LOCK_FILE: &str = ".tagsmith-train.lock";
+
+/// The output folder's lock, held while it lives.
+#[derive(Debug)]
+pub struct OutLock {
+    _file: std::fs::File,
 }
 
 /// The paths of a training folder.
@@ -167,19 +187,76 @@ impl OutDir {
         self.0.join("report.json")
     }
 
-    /// Creates the folder and proves it writable before the first step, rather than at the first
-    /// checkpoint minutes later.
-    pub fn check_writable(&self) -> Result<(), TrainError> {
-        let cannot = |e: std::io::Error| {
-            TrainError::Output(format!(
-                "{}: cannot write the training output there: {e}",
-                self.0.display()
-            ))
-        };
-        std::fs::create_dir_all(&self.0).map_err(cannot)?;
+    pub fn lock_file(&self) -> PathBuf {
+        self.0.join(LOCK_FILE)
+    }
+
+    /// Creates the folder and takes the exclusive lock of its [`LOCK_FILE`] for as long as the
+    /// returned guard lives, and proves the folder writable before the first step rather than at
+    /// the first checkpoint minutes later. Another run holding it is
+    /// [`TrainError::InUse`]; a lock a killed run left behind is no obstacle, since the system
+    /// releases a dead process's locks. Where the file system has no locks, the run goes on
+    /// without one.
+    pub fn lock(&self) -> Result<OutLock, TrainError> {
+        self.create()?;
+        let path = self.lock_file();
+        let file = std::fs::OpenOptions::new()
+            .create(true)
+            .truncate(false)
+            .write(true)
+            .open(&path)
+            .map_err(|e| self.cannot_write(e))?;
+        match file.try_lock() {
+            Ok(()) => {}
+            Err(std::fs::TryLockError::WouldBlock) => {
+                return Err(TrainError::InUse(format!(
+                    "{} is in use by another training run (lock file {}); wait for it to end, \
+                     or train into another folder with --out",
+                    self.0.display(),
+                    path.display()
+                )))
+            }
+            Err(std::fs::TryLockError::Error(e)) if e.kind() == std::io::ErrorKind::Unsupported => {
+            }
+            Err(std::fs::TryLockError::Error(e)) => {
+                return Err(TrainError::Output(format!(
+                    "{}: cannot lock it: {e}",
+                    path.display()
+                )))
+            }
+        }
+        // Checkpoints are written as new files beside the old: prove that works now.
         let probe = self.0.join(".tagsmith-write-check");
-        std::fs::write(&probe, b"").map_err(cannot)?;
-        std::fs::remove_file(&probe).map_err(cannot)
+        std::fs::write(&probe, b"").map_err(|e| self.cannot_write(e))?;
+        std::fs::remove_file(&probe).map_err(|e| self.cannot_write(e))?;
+        Ok(OutLock { _file: file })
+    }
+
+    fn create(&self) -> Result<(), TrainError> {
+        if self.0.exists() && !self.0.is_dir() {
+            return Err(TrainError::NotAFolder(format!(
+                "{}: it is a file, not a folder; the training output is a folder (checkpoint, \
+                 model, report)",
+                self.0.display()
+            )));
+        }
+        std::fs::create_dir_all(&self.0).map_err(|e| match e.kind() {
+            // A file where a folder above it should be.
+            std::io::ErrorKind::NotADirectory | std::io::ErrorKind::AlreadyExists => {
+                TrainError::NotAFolder(format!(
+                    "{}: cannot make the folder there: {e}",
+                    self.0.display()
+                ))
+            }
+            _ => self.cannot_write(e),
+        })
+    }
+
+    fn cannot_write(&self, e: std::io::Error) -> TrainError {
+        TrainError::Output(format!(
+            "{}: cannot write the training output there: {e}",
+            self.0.display()
+        ))
     }
 }
 
@@ -213,7 +290,8 @@ pub fn train<S: TrainStage>(
     on_event: &mut dyn FnMut(StageEvent<S>),
 ) -> Result<StageReport<S>, TrainError> {
     let dir = OutDir(out.to_path_buf());
-    dir.check_writable()?;
+    // Held to the end of the run, the final model and report included.
+    let _lock = dir.lock()?;
     let mut run = Run::start(stage.clone(), config, &dir, resume)?;
     on_event(Event::Started {
         family: stage.subject(),

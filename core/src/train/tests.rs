@@ -256,3 +256,71 @@ fn an_unwritable_output_folder_fails_before_training() {
     assert!(err.contains("file-not-folder"), "{err}");
     assert_eq!(steps, 0);
 }
+
+/// A second run into a folder another run holds stops before anything, naming the folder and its
+/// lock file; once the first lets go, the folder is free again (as after a killed run: the
+/// system drops a dead process's locks).
+#[test]
+fn a_folder_in_use_by_another_run_is_refused_at_once() {
+    use super::{OutDir, TrainError, LOCK_FILE};
+    let family = builtin::get("apriltag-16h5").unwrap().unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let held = OutDir(dir.path().to_path_buf()).lock().unwrap();
+    let never = AtomicBool::new(false);
+    let mut events = 0;
+    let err = train(&family, &tiny(2), dir.path(), false, &never, &mut |_| {
+        events += 1
+    })
+    .unwrap_err();
+    assert!(matches!(err, TrainError::InUse(_)), "{err}");
+    let text = err.to_string();
+    assert!(
+        text.starts_with(&format!(
+            "{} is in use by another training run",
+            dir.path().display()
+        )) && text.contains(LOCK_FILE),
+        "{text}"
+    );
+    assert_eq!(events, 0);
+    assert!(!dir.path().join("checkpoint.bin").exists());
+    drop(held);
+    drop(OutDir(dir.path().to_path_buf()).lock().unwrap());
+}
+
+/// `--out` naming a file is the request's mistake, named as such, whether the file is the folder
+/// itself or lies above it.
+#[test]
+fn an_output_folder_that_is_a_file_is_refused() {
+    use super::TrainError;
+    let family = builtin::get("apriltag-16h5").unwrap().unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("notes.txt");
+    std::fs::write(&file, b"x").unwrap();
+    let never = AtomicBool::new(false);
+    for out in [file.clone(), file.join("run")] {
+        let err = train(&family, &tiny(2), &out, false, &never, &mut |_| {}).unwrap_err();
+        assert!(matches!(err, TrainError::NotAFolder(_)), "{err}");
+        assert!(err.to_string().contains("notes.txt"), "{err}");
+    }
+    assert_eq!(std::fs::read(&file).unwrap(), b"x");
+}
+
+/// A checkpoint that is a FIFO (or a folder) is refused when resuming, never waited on.
+#[cfg(unix)]
+#[test]
+fn a_checkpoint_that_is_not_a_regular_file_is_refused_without_waiting() {
+    use super::TrainError;
+    let family = builtin::get("apriltag-16h5").unwrap().unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let checkpoint = dir.path().join("checkpoint.bin");
+    let made = std::process::Command::new("mkfifo")
+        .arg(&checkpoint)
+        .status();
+    if !made.is_ok_and(|s| s.success()) {
+        std::fs::create_dir(&checkpoint).unwrap();
+    }
+    let never = AtomicBool::new(false);
+    let err = train(&family, &tiny(2), dir.path(), true, &never, &mut |_| {}).unwrap_err();
+    assert!(matches!(err, TrainError::Checkpoint(_)), "{err}");
+    assert!(err.to_string().contains("checkpoint.bin"), "{err}");
+}

@@ -5,7 +5,8 @@
 
 use super::net::{NetConfig, Stage1Net};
 use crate::detect::stage2::model_file::{
-    checked_weights, fnv1a, load_weights, pack, unpack, weight_bytes, ModelError,
+    check_range, check_weight_size, checked_weights, fnv1a, load_weights, pack, read_model_file,
+    unpack, weight_bytes, ModelError, MAX_STEPS, WIDTHS,
 };
 use burn::tensor::Device;
 use serde::{Deserialize, Serialize};
@@ -55,19 +56,21 @@ pub fn from_bytes(
     if header.format != 1 {
         return Err(corrupt(format!("unknown format {}", header.format)));
     }
-    if header.net.width < 8 || header.net.width > 512 || !header.net.width.is_multiple_of(4) {
-        return Err(corrupt(format!("network width {}", header.net.width)));
-    }
+    // The fields the network is built from, before any tensor exists (a width of 0 panics inside
+    // burn, a huge one would allocate without bound).
+    check_range(path, "net.width", header.net.width, &WIDTHS)?;
+    check_range(path, "steps", header.steps, &(0..=MAX_STEPS))?;
     let weights = checked_weights(bytes, start, &header.weights_fnv, path)?;
-    let net = load_weights(header.net.init(device), weights, path)?;
+    let net = header.net.init(device);
+    let network = || format!("width {}", header.net.width);
+    check_weight_size(&net, network, weights, path)?;
+    let net = load_weights(net, weights, path)?;
     Ok((net, header))
 }
 
+/// Loads stage-1 model file `path`: a regular file of at most [`crate::io::MAX_MODEL_BYTES`]
+/// (a FIFO, a device or a folder is refused before anything waits on it).
 pub fn load(path: &Path, device: &Device) -> Result<(Stage1Net, Stage1Header), ModelError> {
-    let name = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|source| ModelError::Io {
-        path: name.clone(),
-        source,
-    })?;
-    from_bytes(&bytes, &name, device)
+    let bytes = read_model_file(path)?;
+    from_bytes(&bytes, &path.display().to_string(), device)
 }
