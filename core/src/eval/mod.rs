@@ -12,6 +12,8 @@
 //!                              "pose": {"rotation": [[…], […], […]], "translation_m": [x, y, z]}}]}]}
 //! ```
 //! `pose` is optional: without it the scorer solves it from the four corners with the set's camera.
+//! `tagsmith detect --json` may add `"failed": [{"file", "error", "exit_code"}]` for images it
+//! could not detect; the scorer ignores it.
 
 pub mod compare;
 mod plot;
