@@ -39,6 +39,64 @@ pub fn tagsmith(dir: &Path, args: &[&str]) -> Run {
     }
 }
 
+/// Runs `args` in `dir` like [`tagsmith`], but fails the test (killing the run) if it has not
+/// ended within `limit`: a command that waits on a FIFO waits forever, and the bound
+/// for any input is 20 s.
+pub fn tagsmith_within(dir: &Path, args: &[&str], limit: std::time::Duration) -> Run {
+    use std::process::Stdio;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_tagsmith"))
+        .args(args)
+        .current_dir(dir)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("the tagsmith binary runs");
+    // Drained on threads, so a chatty run cannot block on a full pipe.
+    let drain = |mut r: Box<dyn std::io::Read + Send>| {
+        std::thread::spawn(move || {
+            let mut text = Vec::new();
+            let _ = r.read_to_end(&mut text);
+            String::from_utf8_lossy(&text).into_owned()
+        })
+    };
+    let out = drain(Box::new(child.stdout.take().unwrap()));
+    let err = drain(Box::new(child.stderr.take().unwrap()));
+    let started = std::time::Instant::now();
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        if started.elapsed() >= limit {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("{args:?} did not end within {limit:?}");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    };
+    Run {
+        code: status.code().unwrap_or(-1),
+        stdout: out.join().unwrap(),
+        stderr: err.join().unwrap(),
+    }
+}
+
+/// Runs `args` in `dir` and checks it is refused as bad input (exit 2, within 20 s, no panic)
+/// with every one of `names` (the option, file, field or range) in the message.
+pub fn refused(dir: &Path, args: &[&str], names: &[&str]) -> Run {
+    let run = tagsmith_within(dir, args, std::time::Duration::from_secs(20));
+    assert_eq!(run.code, 2, "{args:?}\nstderr: {}", run.stderr);
+    assert!(!run.stderr.contains("panicked"), "{args:?}: {}", run.stderr);
+    for name in names {
+        assert!(
+            run.stderr.contains(name),
+            "{args:?}: {name:?} not in {}",
+            run.stderr
+        );
+    }
+    run
+}
+
 pub fn workspace() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
 }

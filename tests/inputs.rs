@@ -7,50 +7,6 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-/// Runs `args` in `dir` and kills it (failing the test) if it has not ended after `limit`: a
-/// command that waits on a FIFO waits forever.
-fn within(dir: &Path, args: &[&str], limit: Duration) -> Run {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_tagsmith"))
-        .args(args)
-        .current_dir(dir)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("the tagsmith binary runs");
-    let clock = Instant::now();
-    while child.try_wait().unwrap().is_none() {
-        if clock.elapsed() > limit {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!("{args:?} still ran after {limit:?}: it waits on its input");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    let out = child.wait_with_output().unwrap();
-    Run {
-        code: out.status.code().unwrap_or(-1),
-        stdout: String::from_utf8_lossy(&out.stdout).into(),
-        stderr: String::from_utf8_lossy(&out.stderr).into(),
-    }
-}
-
-/// Runs `args` and checks it is refused as bad input (exit 2, in at most 20 s) with every one
-/// of `names` in the message.
-fn refused(dir: &Path, args: &[&str], names: &[&str]) -> Run {
-    let run = within(dir, args, Duration::from_secs(20));
-    assert_eq!(run.code, 2, "{args:?}\nstderr: {}", run.stderr);
-    assert!(!run.stderr.contains("panicked"), "{args:?}: {}", run.stderr);
-    for name in names {
-        assert!(
-            run.stderr.contains(name),
-            "{args:?}: {name:?} not in {}",
-            run.stderr
-        );
-    }
-    run
-}
-
 fn sample() -> PathBuf {
     workspace().join("assets/samples/apriltag-36h11-swarmathon.jpg")
 }
@@ -296,7 +252,7 @@ fn a_float_tiff_reads() {
     let samples: Vec<f32> = gray.pixels.iter().map(|&v| v as f32 / 255.0).collect();
     let tiff = float_tiff(gray.width, gray.height, &samples);
     std::fs::write(dir.path().join("photo.tif"), tiff).unwrap();
-    let run = within(
+    let run = tagsmith_within(
         dir.path(),
         &["detect", "photo.tif", "--family", "apriltag-36h11"],
         Duration::from_secs(120),
@@ -358,7 +314,7 @@ fn a_second_training_run_into_a_folder_in_use_is_refused() {
     assert!(!d.join("r/checkpoint.bin").exists());
     // Released (as when its run ends or is killed), the folder takes a run again.
     drop(held);
-    within(d, &args, Duration::from_secs(120)).ok();
+    tagsmith_within(d, &args, Duration::from_secs(120)).ok();
     assert!(d.join("r/model.bin").exists());
 }
 
@@ -396,7 +352,7 @@ fn a_killed_runs_lock_does_not_block_the_resumed_run() {
         assert!(clock.elapsed().as_secs() < 120, "no checkpoint written");
         std::thread::sleep(Duration::from_millis(20));
     }
-    let second = within(d, &args("3"), Duration::from_secs(20));
+    let second = tagsmith_within(d, &args("3"), Duration::from_secs(20));
     first.kill().unwrap(); // SIGKILL: the lock file stays, its lock does not
     first.wait().unwrap();
     assert_eq!(second.code, 2, "{}", second.stderr);
@@ -409,7 +365,7 @@ fn a_killed_runs_lock_does_not_block_the_resumed_run() {
     let steps = resume.iter().position(|a| *a == "100000").unwrap();
     resume[steps] = "1";
     resume.push("--resume");
-    let resumed = within(d, &resume, Duration::from_secs(120));
+    let resumed = tagsmith_within(d, &resume, Duration::from_secs(120));
     resumed.ok();
     assert!(
         resumed.stderr.contains("resumed at step"),

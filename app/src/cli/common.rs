@@ -22,6 +22,32 @@ pub fn load_family(name_or_path: &str) -> Result<Family> {
     ))
 }
 
+/// Refuses an output folder that names a file, or lies under one, as bad input naming `option`:
+/// creating the folder there would fail as if the disk had.
+pub(crate) fn output_folder(path: &Path, option: &str) -> Result<()> {
+    let mut at = Some(path);
+    while let Some(p) = at.filter(|p| !p.as_os_str().is_empty()) {
+        match std::fs::metadata(p) {
+            Ok(m) if m.is_dir() => return Ok(()),
+            Ok(_) if p == path => {
+                return Err(bad_input!(
+                    "{option} {}: it exists and is not a folder",
+                    path.display()
+                ))
+            }
+            Ok(_) => {
+                return Err(bad_input!(
+                    "{option} {}: {} is not a folder",
+                    path.display(),
+                    p.display()
+                ))
+            }
+            Err(_) => at = p.parent(),
+        }
+    }
+    Ok(())
+}
+
 pub(crate) fn write_output(path: &Path, bytes: &[u8]) -> Result<()> {
     tagsmith::io::write_atomic(path, bytes)
         .with_context(|| format!("cannot write {}", path.display()))

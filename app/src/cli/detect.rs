@@ -1,7 +1,7 @@
 //! `detect` and `detect-set`: the learned stage-2 detector on images.
 
-use super::common::{load_family, progress_bar, write_output};
-use super::error::{bad_input, failure, Classify, Concerning, Result};
+use super::common::{load_family, output_folder, progress_bar, write_output};
+use super::error::{bad_input, failure, Classify, CliError, Concerning, Result};
 use anyhow::Context;
 use clap::Args;
 use std::path::{Path, PathBuf};
@@ -330,13 +330,7 @@ impl DetectArgs {
         }
         let annotations = match &self.annotate {
             Some(dir) => {
-                if dir.exists() && !dir.is_dir() {
-                    return Err(bad_input!(
-                        "--annotate {}: it is a file; give the folder that receives the \
-                         annotated images",
-                        dir.display()
-                    ));
-                }
+                output_folder(dir, "--annotate")?;
                 std::fs::create_dir_all(dir)
                     .with_context(|| format!("cannot create the folder {}", dir.display()))
                     .failure()?;
@@ -612,14 +606,8 @@ fn parse_roi(text: &str) -> Result<[[f64; 2]; 4]> {
 }
 
 fn read_camera_file(path: &Path) -> Result<String> {
-    tagsmith::io::read_input_text(path, tagsmith::io::MAX_TEXT_BYTES).map_err(|e| {
-        let message = format!("--camera {}: {e}", path.display());
-        if tagsmith::io::is_bad_input(&e) {
-            bad_input!("{message}")
-        } else {
-            failure!("{message}")
-        }
-    })
+    tagsmith::io::read_input_text(path, tagsmith::io::MAX_TEXT_BYTES)
+        .map_err(|e| CliError::reading(format_args!("--camera {}", path.display()), e))
 }
 
 /// A camera file checked for everything but the image size, which each image's check does.

@@ -40,6 +40,17 @@ impl CliError {
         CliError::Failed(flatten(e))
     }
 
+    /// An input that could not be read, its message led by `what`: bad input when the file is
+    /// at fault (missing, not a regular file, too large; [`tagsmith::io::is_bad_input`]), a
+    /// failure when the machine is.
+    pub(crate) fn reading(what: impl fmt::Display, e: std::io::Error) -> Self {
+        if tagsmith::io::is_bad_input(&e) {
+            CliError::bad_input(format_args!("{what}: {e}"))
+        } else {
+            CliError::failure(format_args!("{what}: {e}"))
+        }
+    }
+
     /// The same kind of error, its message led by `what` (`--ids: …`, `camera.yml: …`).
     pub(crate) fn concerning(self, what: impl fmt::Display) -> Self {
         match self {

@@ -1,13 +1,13 @@
 //! `eval generate`, `eval score` and `eval oracle`: the evaluation harness.
 
-use super::common::{f64_in, load_family, print_quietly, write_output};
-use super::error::{bad_input, failure, Classify, Concerning, Result};
+use super::common::{f64_in, load_family, output_folder, print_quietly, write_output};
+use super::error::{bad_input, Classify, CliError, Concerning, Result};
 use anyhow::Context;
 use clap::{Args, Subcommand};
 use std::path::PathBuf;
 use tagsmith::detect::DetectionsFile;
 use tagsmith::eval::{compare, score, set};
-use tagsmith::io::{is_bad_input, read_input_text, MAX_TEXT_BYTES};
+use tagsmith::io::{read_input_text, MAX_TEXT_BYTES};
 
 #[derive(Subcommand, Debug)]
 pub enum EvalCommand {
@@ -77,32 +77,6 @@ impl GenerateSetArgs {
     }
 }
 
-/// Refuses an output folder that names a file, or lies under one, as bad input naming `option`:
-/// creating the folder there would fail as if the disk had.
-fn output_folder(path: &std::path::Path, option: &str) -> Result<()> {
-    let mut at = Some(path);
-    while let Some(p) = at.filter(|p| !p.as_os_str().is_empty()) {
-        match std::fs::metadata(p) {
-            Ok(m) if m.is_dir() => return Ok(()),
-            Ok(_) if p == path => {
-                return Err(bad_input!(
-                    "{option} {}: it exists and is not a folder",
-                    path.display()
-                ))
-            }
-            Ok(_) => {
-                return Err(bad_input!(
-                    "{option} {}: {} is not a folder",
-                    path.display(),
-                    p.display()
-                ))
-            }
-            Err(_) => at = p.parent(),
-        }
-    }
-    Ok(())
-}
-
 /// The family file `eval generate` writes beside `set.json`.
 const SET_FAMILY_FILE: &str = "family.json";
 
@@ -143,13 +117,8 @@ fn load_set(dir: &std::path::Path) -> Result<(set::BenchmarkSet, tagsmith::famil
 /// A detections file: a regular file of at most `MAX_TEXT_BYTES` (a FIFO is refused rather than
 /// waited on, `/dev/zero` rather than read forever).
 fn read_detections(path: &std::path::Path) -> Result<DetectionsFile> {
-    let text = read_input_text(path, MAX_TEXT_BYTES).map_err(|e| {
-        if is_bad_input(&e) {
-            bad_input!("cannot read {}: {e}", path.display())
-        } else {
-            failure!("cannot read {}: {e}", path.display())
-        }
-    })?;
+    let text = read_input_text(path, MAX_TEXT_BYTES)
+        .map_err(|e| CliError::reading(format_args!("cannot read {}", path.display()), e))?;
     serde_json::from_str(&text).map_err(|e| bad_input!("{}: {e}", path.display()))
 }
 

@@ -1,7 +1,7 @@
 //! `studio` (and no command at all): the studio window.
 
 use super::common::load_family;
-use super::error::{bad_input, failure, Result};
+use super::error::{failure, CliError, Result};
 use tagsmith_studio::studio::files::MAX_IMAGE_BYTES;
 use tagsmith_studio::studio::{detect, Panel};
 
@@ -15,11 +15,10 @@ fn is_sample(path: &std::path::Path) -> bool {
 /// before the window opens, a device never end).
 fn read_image(path: &std::path::Path) -> Result<Vec<u8>> {
     tagsmith::io::read_input(path, MAX_IMAGE_BYTES).map_err(|e| {
-        if tagsmith::io::is_bad_input(&e) {
-            bad_input!("--image {}: cannot read the image: {e}", path.display())
-        } else {
-            failure!("--image {}: cannot read the image: {e}", path.display())
-        }
+        CliError::reading(
+            format_args!("--image {}: cannot read the image", path.display()),
+            e,
+        )
     })
 }
 

@@ -1,6 +1,6 @@
 //! `synth`: training images with exact ground truth.
 
-use super::common::{load_family, progress_bar, write_output};
+use super::common::{load_family, output_folder, progress_bar, write_output};
 use super::error::{bad_input, failure, Classify, Result};
 use anyhow::Context;
 use clap::Args;
@@ -62,32 +62,6 @@ fn marker_count(text: &str) -> std::result::Result<[u32; 2], String> {
     Ok(range)
 }
 
-/// Refuses an output folder that names a file, or lies under one, as bad input naming
-/// `--output`: creating the folder there would fail as if the disk had.
-fn output_folder(path: &std::path::Path) -> Result<()> {
-    let mut at = Some(path);
-    while let Some(p) = at.filter(|p| !p.as_os_str().is_empty()) {
-        match std::fs::metadata(p) {
-            Ok(m) if m.is_dir() => return Ok(()),
-            Ok(_) if p == path => {
-                return Err(bad_input!(
-                    "--output {}: it exists and is not a folder",
-                    path.display()
-                ))
-            }
-            Ok(_) => {
-                return Err(bad_input!(
-                    "--output {}: {} is not a folder",
-                    path.display(),
-                    p.display()
-                ))
-            }
-            Err(_) => at = p.parent(),
-        }
-    }
-    Ok(())
-}
-
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
 pub enum SynthMode {
     Quad,
@@ -117,7 +91,7 @@ impl SynthArgs {
             }
             config.markers = range;
         }
-        output_folder(&self.output)?;
+        output_folder(&self.output, "--output")?;
         std::fs::create_dir_all(&self.output)
             .with_context(|| format!("cannot create {}", self.output.display()))
             .failure()?;

@@ -45,16 +45,8 @@ fn max_workers() -> u64 {
 
 /// The model file `--init` names: a regular file of at most [`tagsmith::io::MAX_MODEL_BYTES`].
 fn read_init(path: &str) -> Result<Vec<u8>> {
-    tagsmith::io::read_input(std::path::Path::new(path), tagsmith::io::MAX_MODEL_BYTES).map_err(
-        |e| {
-            let error = format!("--init {path}: cannot read it: {e}");
-            if tagsmith::io::is_bad_input(&e) {
-                CliError::bad_input(error)
-            } else {
-                CliError::failure(error)
-            }
-        },
-    )
+    tagsmith::io::read_input(std::path::Path::new(path), tagsmith::io::MAX_MODEL_BYTES)
+        .map_err(|e| CliError::reading(format_args!("--init {path}: cannot read it"), e))
 }
 
 /// A run's error with its exit code: a folder that another run holds, or that is a file, is the
