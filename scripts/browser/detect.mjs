@@ -1,7 +1,7 @@
 // Opens the built web studio (app/dist, served on localhost) on the Detect panel with a shipped
 // sample, waits for the detector's console line, prints it, and screenshots the page.
 //   node scripts/browser/detect.mjs URL OUT.png
-// The studio logs "detected N marker(s) in NAME (W×H) in T ms (stage 1 …, stage 2 …)" when a
+// The studio logs "detected N marker(s) in NAME (W×H) in T ms (propose …, verify …, read …, reconcile …; …)" when a
 // detection finishes (app/src/studio/detect.rs); the time is performance.now() in the page.
 import { chromium } from "playwright-core";
 

@@ -176,6 +176,7 @@ impl DetectArgs {
         let options = ReadOptions {
             iterations: self.iterations,
             refine: self.refine,
+            ..ReadOptions::default()
         };
         let found = model.detect(&image, &roi, &options, Some((&camera, side_mm / 1000.0)));
         if let Some(path) = &self.annotate {
@@ -251,7 +252,7 @@ impl DetectArgs {
             .map(|f| format!("{} #{}", f.family, f.marker.id))
             .collect();
         let line = format!(
-            "{}: {} marker{} {}in {time_ms:.0} ms (stage 1 {:.0} ms, {} ROI{}; stage 2 {:.0} ms)",
+            "{}: {} marker{} {}in {time_ms:.0} ms ({timings})",
             path.display(),
             found.len(),
             if found.len() == 1 { "" } else { "s" },
@@ -260,10 +261,6 @@ impl DetectArgs {
             } else {
                 format!("({}) ", listed.join(", "))
             },
-            timings.stage1_ms,
-            timings.proposals,
-            if timings.proposals == 1 { "" } else { "s" },
-            timings.stage2_ms,
         );
         if let Some(annotation) = annotation {
             let overlays: Vec<Overlay> = found.iter().map(Found::overlay).collect();
@@ -274,6 +271,7 @@ impl DetectArgs {
             file: path_as_given(path),
             time_ms,
             detections: found.iter().map(Found::detection).collect(),
+            timings: serde_json::to_value(timings).ok(),
         };
         Ok((entry, line))
     }
@@ -307,6 +305,7 @@ impl DetectArgs {
         detector.options.read = ReadOptions {
             iterations: self.iterations,
             refine: self.refine,
+            ..ReadOptions::default()
         };
         detector.options.propose.group.corner = self.corner_threshold;
         detector.options.propose.upsample = self.upsample;
@@ -502,6 +501,7 @@ impl DetectSetArgs {
         let read = ReadOptions {
             iterations: self.iterations,
             refine: self.refine,
+            ..ReadOptions::default()
         };
         let normal_only = self.normal_only;
         let include = |img: &set::BenchImage| {

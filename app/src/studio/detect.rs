@@ -239,13 +239,11 @@ impl DetectState {
         let time_ms = clock.ms();
         // The browser check (scripts/web-detect.sh) reads this line from the console.
         log::info!(
-            "detected {} marker(s) in {} ({}×{}) in {time_ms:.1} ms (stage 1 {:.1} ms, stage 2 {:.1} ms)",
+            "detected {} marker(s) in {} ({}×{}) in {time_ms:.1} ms ({timings})",
             found.len(),
             image.name,
             image.gray.width,
             image.gray.height,
-            timings.stage1_ms,
-            timings.stage2_ms
         );
         let camera = detector.camera_for(&image.gray);
         let axes = found
@@ -343,6 +341,7 @@ impl DetectState {
                 file: image.name.clone(),
                 time_ms: result.time_ms,
                 detections: result.found.iter().map(Found::detection).collect(),
+                timings: serde_json::to_value(result.timings).ok(),
             }],
         })
     }
@@ -518,13 +517,11 @@ pub fn show(studio: &mut Studio, ui: &mut egui::Ui, ctx: &egui::Context) {
     };
     ui.horizontal(|ui| {
         ui.label(format!(
-            "{}: {} marker(s) in {:.0} ms (stage 1 {:.0} ms, {} ROI(s); stage 2 {:.0} ms)",
+            "{}: {} marker(s) in {:.0} ms ({})",
             image.name,
             result.found.len(),
             result.time_ms,
-            result.timings.stage1_ms,
-            result.timings.proposals,
-            result.timings.stage2_ms
+            result.timings,
         ));
     });
     let mut save_json = false;

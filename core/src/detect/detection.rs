@@ -61,6 +61,10 @@ pub struct ImageDetections {
     #[serde(default)]
     pub time_ms: f64,
     pub detections: Vec<Detection>,
+    /// Where the time went, as the detector that wrote the file reports it (Tagsmith's: each
+    /// phase and each proposal source, with ROIs, stage-2 reads and passes).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub timings: Option<serde_json::Value>,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -288,6 +288,63 @@ mod tests {
         }
     }
 
+    /// The verify phase's check, asked of what a photograph shows: a marker of every shipped
+    /// family and of a random square design passes; a checkerboard, the commonest square clutter
+    /// of calibration scenes, does not.
+    #[test]
+    fn markers_of_every_shipped_family_and_a_random_design_pass_and_a_checkerboard_does_not() {
+        let mut pick = {
+            let mut state = 7usize;
+            move |n: usize| {
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                (state >> 33) % n
+            }
+        };
+        let random = Family::from_spec(crate::family::designs::random_square(3, &mut pick))
+            .expect("a random square design is a valid family");
+        let mut families: Vec<Family> = ["apriltag-36h11", "aruco-6x6_250", "apriltag-xo-36h11"]
+            .iter()
+            .map(|n| builtin(n).unwrap())
+            .collect();
+        families.push(random);
+        let mut board = GrayImage::new(200, 200, 215);
+        let cell = 20.0;
+        for j in 0..8 {
+            for i in 0..8 {
+                if (i + j) % 2 == 0 {
+                    let corner = square(20.0 + i as f64 * cell, 20.0 + j as f64 * cell, cell);
+                    fill(&mut board, &corner, 35);
+                }
+            }
+        }
+        for family in &families {
+            let check = PreCheck::new(family).expect("framed in black on white");
+            let roi = template_roi(family);
+            let template = rectified_template(family, 1, TEMPLATE_PX).unwrap();
+            let sample = QuadSample::of(&template, &roi);
+            assert!(
+                check.passes(sample.as_ref()),
+                "{}: {sample:?}",
+                family.name()
+            );
+            // The whole board, and quads of 4 × 4 and 6 × 6 of its squares.
+            for quad in [
+                square(20.0, 20.0, 160.0),
+                square(40.0, 40.0, 80.0),
+                square(40.0, 40.0, 120.0),
+            ] {
+                let sample = QuadSample::of(&board, &quad);
+                assert!(
+                    !check.passes(sample.as_ref()),
+                    "{}: {sample:?}",
+                    family.name()
+                );
+            }
+        }
+    }
+
     #[test]
     fn a_family_too_dark_inside_to_tell_from_a_blob_is_not_checked() {
         // TopoTag-like: a dark ground up to the rim, with a few light dots inside.

@@ -346,6 +346,7 @@ mod tests {
                         file: img.file.clone(),
                         time_ms: 1.0,
                         detections,
+                        timings: None,
                     }
                 })
                 .collect(),

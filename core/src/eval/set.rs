@@ -412,6 +412,7 @@ impl BenchmarkSet {
                     file: img.file.clone(),
                     time_ms: 0.0,
                     detections: img.truth_detections(true),
+                    timings: None,
                 })
                 .collect(),
         }
@@ -436,6 +437,7 @@ pub fn run_detector(
             file: img.file.clone(),
             time_ms: start.elapsed().as_secs_f64() * 1e3,
             detections,
+            timings: None,
         });
     }
     Ok(DetectionsFile {

@@ -56,6 +56,9 @@ pub struct ReadOptions {
     /// also where the first decoded nothing, if the alignment is on to confirm that read).
     pub iterations: usize,
     pub refine: RefineMode,
+    /// The ROIs of one batch that decode nothing read again from where their keypoints place
+    /// the marker, at most (the first ones of the batch).
+    pub retried_rois: usize,
 }
 
 impl Default for ReadOptions {
@@ -63,6 +66,7 @@ impl Default for ReadOptions {
         Self {
             iterations: 2,
             refine: RefineMode::Full,
+            retried_rois: MAX_RETRIED_ROIS,
         }
     }
 }
@@ -198,6 +202,17 @@ impl Stage2 {
         rois: &[[[f64; 2]; 4]],
         options: &ReadOptions,
     ) -> Vec<Option<Stage2Result>> {
+        self.first_passes_counted(image, rois, options).0
+    }
+
+    /// [`Stage2::first_passes`] and the network passes they took.
+    pub fn first_passes_counted(
+        &self,
+        image: &GrayImage,
+        rois: &[[[f64; 2]; 4]],
+        options: &ReadOptions,
+    ) -> (Vec<Option<Stage2Result>>, usize) {
+        let mut passes = 0;
         // Retries only where the alignment with the rendering can confirm the frame such a
         // read ends with (`continue_from`).
         let confirmable = options.iterations >= 2 && options.refine == RefineMode::Full;
@@ -210,6 +225,7 @@ impl Stage2 {
                 break;
             }
             let (mut still_pending, mut still_rois) = (Vec::new(), Vec::new());
+            passes += pending_rois.len();
             let outcomes = self.read_batch(image, &pending_rois);
             for ((i, last), outcome) in pending.into_iter().zip(&pending_rois).zip(outcomes) {
                 match outcome {
@@ -221,7 +237,7 @@ impl Stage2 {
                     }
                     Err(Some(roi))
                         if largest_corner_move(&roi, last) >= MIN_RETRY_MOVE_PX
-                            && (round > 0 || still_pending.len() < MAX_RETRIED_ROIS) =>
+                            && (round > 0 || still_pending.len() < options.retried_rois) =>
                     {
                         still_pending.push(i);
                         still_rois.push(roi);
@@ -231,7 +247,7 @@ impl Stage2 {
             }
             (pending, pending_rois) = (still_pending, still_rois);
         }
-        results
+        (results, passes)
     }
 
     /// One network batch over `rois`: each one's result, or where it does not decode, the ROI

@@ -185,6 +185,7 @@ fn a_roi_off_at_a_steep_markers_corners_reads_from_the_keypoints_found() {
     let single = ReadOptions {
         iterations: 1,
         refine: RefineMode::Full,
+        ..ReadOptions::default()
     };
     let twice = ReadOptions {
         iterations: 2,
@@ -249,6 +250,7 @@ fn a_batch_reads_only_its_first_rois_again_from_their_keypoints() {
     let options = ReadOptions {
         iterations: 2,
         refine: RefineMode::Full,
+        ..ReadOptions::default()
     };
     // A ROI that only a read from its keypoints decodes (the test above: about ten in 48).
     let (sample, roi) = (0..48)

@@ -40,6 +40,7 @@ fn detections(
                 file: img.file.clone(),
                 time_ms: 1.0,
                 detections: f(i, img),
+                timings: None,
             })
             .collect(),
     }

@@ -1,0 +1,367 @@
+//! The verify and read phases: which families' stage 2 each candidate quad goes to, then the
+//! reads themselves (stage 2, decoding, the alignment with the rendering, the pose), each kept
+//! only where its evidence is what its source's trust asks for.
+
+use super::reconcile::Evidence;
+use super::sources::{AcceptParams, Capability, SourceParams, Trust};
+use super::{Detector, FamilyReader, Found, Timings};
+use crate::detect::cells::{CellOutcome, CellRead};
+use crate::detect::precheck::QuadSample;
+use crate::detect::stage1::group::{same_quad, Proposal};
+use crate::detect::stage2::{ReadOptions, Stage2Result};
+use crate::detect::DetectedKeypoint;
+use crate::family::{Assignment, Family};
+use crate::geometry::{largest_corner_move, Camera, Homography};
+use crate::image::GrayImage;
+use crate::io::Stopwatch;
+use rayon::prelude::*;
+
+/// One selection of a source's quads, as the read phase sees it.
+#[derive(Clone, Copy)]
+pub(super) struct Batch<'a> {
+    pub params: &'a SourceParams,
+    pub trust: Trust,
+}
+
+impl FamilyReader {
+    /// Whether the family has what a source assumes of its markers.
+    pub(super) fn has(&self, capability: Capability) -> bool {
+        match capability {
+            Capability::Any => true,
+            Capability::DarkFrame => self.precheck.is_some(),
+            Capability::FlatCells => self.cells.is_some(),
+        }
+    }
+
+    /// Whether the detector keeps a read of a proposal with this trust and ROI score.
+    ///
+    /// A read needing more than half the corrections must decode alike in every pass and fit
+    /// a rigid pose closely ([`AcceptParams::max_weak_read_rms_pitch`]): a misread of a marker
+    /// under heavy noise lands on some code within the limit, and the next pass, from a ROI that
+    /// moved, on another or on none, where a right read decodes again; a quad across a row of
+    /// markers read as one code reprojects by a large part of a cell. A read from the keypoints
+    /// of a first pass that decoded nothing must, with more than half the corrections, fit its
+    /// pose more closely still ([`AcceptParams::max_keypoint_read_rms_pitch`]).
+    pub(super) fn accepts(
+        &self,
+        m: &Stage2Result,
+        trust: Trust,
+        roi_score: f64,
+        params: &AcceptParams,
+    ) -> bool {
+        let limit = self.family.codebook().max_correction();
+        let fits = |max: f64| self.rms_pitch(m).is_none_or(|rms| rms <= max);
+        m.corrected_errors <= trust.allowed(limit, roi_score, params.weak_roi_score)
+            && (m.corrected_errors <= limit / 2
+                || (m.passes_agree
+                    && fits(params.max_weak_read_rms_pitch)
+                    && (!m.from_keypoints || fits(params.max_keypoint_read_rms_pitch))))
+    }
+
+    /// The read's keypoint reprojection RMS from its pose, in cell pitches in the image (`None`
+    /// for a read without a pose).
+    pub(super) fn rms_pitch(&self, marker: &Stage2Result) -> Option<f64> {
+        let pose = marker.pose.as_ref()?;
+        let pitch = self.family.keypoint_pitch() / self.family.roi_side();
+        let c = &marker.corners;
+        let side = (0..4)
+            .map(|i| (c[i][0] - c[(i + 1) % 4][0]).hypot(c[i][1] - c[(i + 1) % 4][1]))
+            .sum::<f64>()
+            / 4.0;
+        Some(pose.rms_px / (pitch * side).max(f64::MIN_POSITIVE))
+    }
+
+    fn evidence(&self, marker: &Stage2Result) -> Evidence {
+        Evidence {
+            corrections: marker.corrected_errors,
+            rms_pitch: self.rms_pitch(marker),
+            strong: marker.corrected_errors <= self.family.codebook().max_correction() / 2,
+        }
+    }
+}
+
+impl Detector {
+    /// The verify phase: for each family that may read the batch's quads, the quads it reads.
+    /// A source whose quads are mostly clutter has them pass each family's pre-read check first;
+    /// the rest fail as stage 2 would have failed them.
+    fn verify(
+        &self,
+        image: &GrayImage,
+        rois: &[[[f64; 2]; 4]],
+        batch: Batch,
+        timings: &mut Timings,
+    ) -> Vec<Vec<usize>> {
+        let clock = Stopwatch::start();
+        let sampled = batch
+            .params
+            .precheck
+            .then(|| self.sample_for_prechecks(image, rois))
+            .flatten();
+        let verified = (self.readers.iter())
+            .map(|reader| {
+                if !reader.has(batch.params.needs) {
+                    return Vec::new();
+                }
+                match (&reader.precheck, &sampled) {
+                    (Some(check), Some(sampled)) => (0..rois.len())
+                        .filter(|&i| check.passes(sampled[i].as_ref()))
+                        .collect(),
+                    _ => (0..rois.len()).collect(),
+                }
+            })
+            .collect();
+        timings.verify_ms += clock.ms();
+        verified
+    }
+
+    /// Verify, then read: stage 2 of every family on every proposal it verified; for each
+    /// proposal, the family that reads it, if any, with no more corrections than the batch's
+    /// trust allows.
+    pub(super) fn read_all(
+        &self,
+        image: &GrayImage,
+        proposals: &[Proposal],
+        camera: Option<&Camera>,
+        batch: Batch,
+        timings: &mut Timings,
+    ) -> Vec<Option<Found>> {
+        let rois: Vec<[[f64; 2]; 4]> = proposals.iter().map(|p| p.corners).collect();
+        let verified = self.verify(image, &rois, batch, timings);
+        let clock = Stopwatch::start();
+        let mut best: Vec<Option<Found>> = vec![None; proposals.len()];
+        for (reader, checked) in self.readers.iter().zip(verified) {
+            if checked.is_empty() {
+                continue;
+            }
+            // The first stage-2 pass over every verified quad in one batch (and the retries from
+            // their keypoints); only the ROIs decoded get the second pass, the alignment and the
+            // pose.
+            let checked_rois: Vec<[[f64; 2]; 4]> = checked.iter().map(|&i| rois[i]).collect();
+            timings.reads += checked_rois.len();
+            let options = ReadOptions {
+                retried_rois: batch.params.retried_rois,
+                ..self.options.read
+            };
+            let (first_reads, passes) =
+                reader
+                    .stage2
+                    .first_passes_counted(image, &checked_rois, &options);
+            timings.passes += passes;
+            let mut firsts = vec![None; rois.len()];
+            for (i, first) in checked.iter().zip(first_reads) {
+                firsts[*i] = first;
+            }
+            let later_passes = self.options.read.iterations.saturating_sub(1);
+            let read: Vec<(usize, Stage2Result)> = firsts
+                .into_par_iter()
+                .enumerate()
+                .with_max_len(1)
+                .filter_map(|(i, first)| {
+                    let marker = reader.stage2.continue_from(
+                        image,
+                        first?,
+                        &self.options.read,
+                        camera.map(|c| (c, reader.side_m)),
+                    )?;
+                    Some((i, marker))
+                })
+                .collect();
+            timings.passes += later_passes * read.len();
+            let accept = &self.options.accept;
+            let read = read
+                .into_iter()
+                .filter(|(i, m)| reader.accepts(m, batch.trust, proposals[*i].score, accept));
+            keep_fewest_corrections(&mut best, reader, proposals, read, false);
+        }
+        timings.read_ms += clock.ms();
+        best
+    }
+
+    /// Each quad's samples for the families' pre-read checks, taken once whatever the number of
+    /// families; `None` when no family has a check.
+    fn sample_for_prechecks(
+        &self,
+        image: &GrayImage,
+        quads: &[[[f64; 2]; 4]],
+    ) -> Option<Vec<Option<QuadSample>>> {
+        self.readers
+            .iter()
+            .any(|r| r.precheck.is_some())
+            .then(|| quads.iter().map(|q| QuadSample::of(image, q)).collect())
+    }
+
+    /// Cell reads of the ROIs no family's network read (§9.8 "Cell reads"), once each is
+    /// fitted to the marker's frame: held to half the family's limit in the code and in the
+    /// frame. The alignment with the rendering still runs, but a sliver's is refused (its
+    /// residual does not drop on 1-px cells), so it is not asked for.
+    /// The first `tried` proposals failed in the network already.
+    pub(super) fn cell_reads(
+        &self,
+        image: &GrayImage,
+        proposals: &[Proposal],
+        tried: usize,
+        camera: Option<&Camera>,
+        batch: Batch,
+        timings: &mut Timings,
+    ) -> Vec<Option<Found>> {
+        let mut best: Vec<Option<Found>> = vec![None; proposals.len()];
+        let rois: Vec<[[f64; 2]; 4]> = proposals.iter().map(|p| p.corners).collect();
+        let clock = Stopwatch::start();
+        let sampled = self.sample_for_prechecks(image, &rois);
+        timings.verify_ms += clock.ms();
+        let clock = Stopwatch::start();
+        // ROIs whose frame fitted but whose cells did not decode, with the fitted corners.
+        let mut framed: Vec<(usize, Proposal)> = Vec::new();
+        for reader in &self.readers {
+            let Some(cells) = &reader.cells else {
+                continue;
+            };
+            let limit = reader.family.codebook().max_correction() / 2;
+            let single = ReadOptions {
+                iterations: 1,
+                ..self.options.read
+            };
+            // Per ROI: the marker its cells read, or the corners its frame fitted.
+            let outcomes: Vec<(usize, Result<Stage2Result, FittedCorners>)> = proposals
+                .par_iter()
+                .enumerate()
+                .with_max_len(1)
+                .filter_map(|(i, proposal)| {
+                    // The frame fit scores hundreds of quads per ROI; one with no light inside
+                    // has no cells to read.
+                    if let (Some(check), Some(sampled)) = (&reader.precheck, &sampled) {
+                        if !check.has_light_inside(sampled[i].as_ref()) {
+                            return None;
+                        }
+                    }
+                    let cell_read = match cells.read_or_frame(
+                        &reader.family,
+                        image,
+                        &proposal.corners,
+                        limit,
+                    ) {
+                        CellOutcome::Read(read) => read,
+                        CellOutcome::Framed(corners) => return Some((i, Err(corners))),
+                        CellOutcome::Unfit => return None,
+                    };
+                    let first = cell_result(&reader.family, &cell_read)?;
+                    let marker = reader.stage2.continue_from(
+                        image,
+                        first,
+                        &single,
+                        camera.map(|c| (c, reader.side_m)),
+                    )?;
+                    (marker.fixed_mismatches <= limit).then_some((i, Ok(marker)))
+                })
+                .collect();
+            let mut read = Vec::new();
+            for (i, outcome) in outcomes {
+                match outcome {
+                    Ok(marker) => read.push((i, marker)),
+                    Err(corners) => framed.push((
+                        i,
+                        Proposal {
+                            corners,
+                            ..proposals[i]
+                        },
+                    )),
+                }
+            }
+            keep_fewest_corrections(&mut best, reader, proposals, read, true);
+        }
+        // The network reads a sliver from a ROI a pixel or two off that its cells, a pixel
+        // wide, cannot: the fitted frame's corners go to stage 2, held like a traced quad.
+        // A frame close to a ROI the network failed on is not worth its pass.
+        let min_move = self.options.refit.min_frame_move_px;
+        framed.retain(|(i, p)| {
+            best[*i].is_none()
+                && (*i >= tried
+                    || largest_corner_move(&proposals[*i].corners, &p.corners) >= min_move)
+        });
+        let mut fitted: Vec<(usize, Proposal)> = Vec::new();
+        for (i, p) in framed {
+            if !fitted.iter().any(|(_, q)| same_quad(q, &p)) {
+                fitted.push((i, p));
+            }
+        }
+        timings.read_ms += clock.ms();
+        let rois: Vec<Proposal> = fitted.iter().map(|(_, p)| *p).collect();
+        let reads = self.read_all(image, &rois, camera, batch, timings);
+        for ((i, _), read) in fitted.into_iter().zip(reads) {
+            if best[i].is_none() {
+                best[i] = read;
+            }
+        }
+        best
+    }
+}
+
+/// The corners of a ROI fitted to a marker's frame.
+type FittedCorners = [[f64; 2]; 4];
+
+/// Files one family's reads (proposal index, marker) into `best`: where two families read one
+/// ROI, the one whose code needed fewer corrections stays.
+fn keep_fewest_corrections(
+    best: &mut [Option<Found>],
+    reader: &FamilyReader,
+    proposals: &[Proposal],
+    reads: impl IntoIterator<Item = (usize, Stage2Result)>,
+    cell_read: bool,
+) {
+    for (i, marker) in reads {
+        if best[i]
+            .as_ref()
+            .is_none_or(|b| marker.corrected_errors < b.marker.corrected_errors)
+        {
+            best[i] = Some(Found {
+                family: reader.family.name().into(),
+                evidence: reader.evidence(&marker),
+                marker,
+                proposal: proposals[i],
+                cell_read,
+            });
+        }
+    }
+}
+
+/// A cell read as a first stage-2 result: keypoints at the cell centres in the image, in the
+/// family's order for the rotation decoded.
+fn cell_result(family: &Family, read: &CellRead) -> Option<Stage2Result> {
+    let rotation = &family.rotations()[read.decoded.rotation];
+    let kps = family.keypoints();
+    let keypoints: Vec<DetectedKeypoint> = (0..kps.len())
+        .map(|i| {
+            let slot = rotation.keypoint_perm[i];
+            let [x, y] = read.centres[slot];
+            let category = read.observed[slot];
+            DetectedKeypoint {
+                index: i,
+                x,
+                y,
+                category,
+                symbol: matches!(kps[i].assignment, Assignment::Symbol(_))
+                    .then(|| family.category_symbol(category))
+                    .flatten(),
+                confidence: read.margins[slot],
+            }
+        })
+        .collect();
+    let canonical: Vec<[f64; 2]> = kps.iter().map(|k| k.pos).collect();
+    let pixels: Vec<[f64; 2]> = keypoints.iter().map(|k| [k.x, k.y]).collect();
+    let to_pixels = Homography::from_points(&canonical, &pixels).ok()?;
+    let roi = family.roi_points();
+    Some(Stage2Result {
+        id: read.decoded.id,
+        rotation_deg: rotation.angle_deg,
+        corrected_errors: read.decoded.corrected_errors,
+        fixed_mismatches: read.decoded.fixed_mismatches,
+        corners: std::array::from_fn(|j| to_pixels.apply(roi[j])),
+        missing: 0,
+        keypoints,
+        iterations: 1,
+        passes_agree: true,
+        from_keypoints: false,
+        refinement: None,
+        pose: None,
+    })
+}
