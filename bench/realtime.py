@@ -110,7 +110,7 @@ def main():
                 total = sum(len(r) for r in refs)
                 recall = f"{hit} of {total}"
             rois = passes = "–"
-            if timings:
+            if timings and all(timings):
                 rois = f"{statistics.median(t['proposals'] for t in timings):.0f}"
                 passes = f"{statistics.median(t['passes'] for t in timings):.0f}"
             print(f"| {name}, {len(images)} | {label} | {statistics.median(times):.1f} | "
