@@ -390,3 +390,96 @@ fn steep_views_are_found_through_their_outlines() {
         "of 16 steep views: {with} found, {without} without the outlined quads"
     );
 }
+
+/// `detect --track`: frames of one scene moving 3 px right and 2 px down each; stage 2 alone
+/// follows the three markers, and the whole detector runs on the first frame and every
+/// `--redetect-every` frames.
+#[test]
+fn tracking_follows_the_markers_of_a_moving_scene_with_stage_2_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    mixed_scene(dir.path());
+    let scene = tagsmith::image::decode(
+        &std::fs::read(dir.path().join("scene.png")).unwrap(),
+        &Default::default(),
+    )
+    .unwrap();
+    let mut frames = Vec::new();
+    for k in 0..5u32 {
+        let (dx, dy) = (3 * k, 2 * k);
+        let mut frame = tagsmith::image::GrayImage::new(scene.width, scene.height, 128);
+        for y in dy..scene.height {
+            for x in dx..scene.width {
+                frame.pixels[(y * scene.width + x) as usize] = scene.get(x - dx, y - dy);
+            }
+        }
+        let name = format!("frame-{k}.png");
+        std::fs::write(
+            dir.path().join(&name),
+            tagsmith::image::encode_png(&frame).unwrap(),
+        )
+        .unwrap();
+        frames.push(name);
+    }
+    let frame_args: Vec<&str> = frames.iter().map(String::as_str).collect();
+    for (every, want) in [
+        ("10", [false, true, true, true, true]),
+        ("2", [false, true, false, true, false]),
+    ] {
+        let mut args = vec![
+            "detect",
+            "--track",
+            "--redetect-every",
+            every,
+            "--family",
+            "apriltag-36h11",
+            "--family",
+            "aruco-6x6_250",
+            "--json",
+            "out.json",
+        ];
+        args.extend(&frame_args);
+        let run = tagsmith(dir.path(), &args);
+        run.ok();
+        assert!(run.stdout.contains("(tracked: "), "{}", run.stdout);
+        let out: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(dir.path().join("out.json")).unwrap()).unwrap();
+        let images = out["images"].as_array().unwrap();
+        let tracked: Vec<bool> = images
+            .iter()
+            .map(|i| i["timings"]["tracked"].as_bool().unwrap())
+            .collect();
+        assert_eq!(tracked, want, "--redetect-every {every}");
+        for (k, image) in images.iter().enumerate() {
+            assert_eq!(
+                image["detections"].as_array().unwrap().len(),
+                3,
+                "frame {k}"
+            );
+        }
+        // The markers move with the frames.
+        let corner = |k: usize| {
+            let c = &images[k]["detections"][0]["corners"][0];
+            [c[0].as_f64().unwrap(), c[1].as_f64().unwrap()]
+        };
+        let (first, last) = (corner(0), corner(4));
+        assert!(
+            ((last[0] - first[0]) - 12.0).abs() < 1.0,
+            "{first:?} → {last:?}"
+        );
+        assert!(
+            ((last[1] - first[1]) - 8.0).abs() < 1.0,
+            "{first:?} → {last:?}"
+        );
+    }
+}
+
+/// `--redetect-every` means nothing without `--track`, and is refused.
+#[test]
+fn redetect_every_without_track_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    refused(
+        dir.path(),
+        &["detect", "x.png", "--redetect-every", "3"],
+        &["--track"],
+    );
+}

@@ -14,6 +14,7 @@ use tagsmith::detect::stage2::shipped_families;
 use tagsmith::detect::stage2::{ReadOptions, Stage2};
 use tagsmith::detect::MarkerReport;
 use tagsmith::detect::{BenchDetector, DetectionsFile, Detector, Found, ImageDetections};
+use tagsmith::detect::{TrackParams, Tracker};
 use tagsmith::family::Family;
 use tagsmith::geometry::Camera;
 use tagsmith::image::GrayImage;
@@ -111,6 +112,21 @@ pub struct DetectArgs {
     /// by default images are detected in parallel on all cores.
     #[arg(long)]
     pub sequential: bool,
+    /// The images are frames of one video, in the order given: each marker of the last frame is
+    /// read again from where its motion puts it, by its family's stage 2 alone; the whole
+    /// detector runs on the first frame, every --redetect-every frames and whenever a marker is
+    /// lost (frames are detected one at a time)
+    #[arg(long, conflicts_with = "roi")]
+    pub track: bool,
+    /// With --track: frames between two runs of the whole detector at most (markers coming into
+    /// view are found no later than this) [range: 1..=10000]
+    #[arg(
+        long,
+        default_value_t = 10,
+        requires = "track",
+        value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=10_000)
+    )]
+    pub redetect_every: usize,
 }
 
 fn unit_interval() -> impl clap::builder::TypedValueParser<Value = f32> {
@@ -227,6 +243,7 @@ impl DetectArgs {
         path: &Path,
         camera: Option<(&Path, &str)>,
         annotation: Option<&Path>,
+        tracker: Option<&std::sync::Mutex<Tracker>>,
     ) -> Result<(ImageDetections, String)> {
         let image = tagsmith::image::read(path, &self.limits())?;
         let camera = camera
@@ -245,14 +262,24 @@ impl DetectArgs {
             }
         }
         let clock = std::time::Instant::now();
-        let (found, timings) = detector.detect_with(&image, camera.as_ref());
+        let (found, timings, tracked) = match tracker {
+            Some(tracker) => {
+                let mut tracker = tracker.lock().unwrap_or_else(|e| e.into_inner());
+                let frame = tracker.next(detector, &image, camera.as_ref());
+                (frame.found, frame.timings, Some(!frame.full))
+            }
+            None => {
+                let (found, timings) = detector.detect_with(&image, camera.as_ref());
+                (found, timings, None)
+            }
+        };
         let time_ms = clock.elapsed().as_secs_f64() * 1e3;
         let listed: Vec<String> = found
             .iter()
             .map(|f| format!("{} #{}", f.family, f.marker.id))
             .collect();
         let line = format!(
-            "{}: {} marker{} {}in {time_ms:.0} ms ({timings})",
+            "{}: {} marker{} {}in {time_ms:.0} ms ({}{timings})",
             path.display(),
             found.len(),
             if found.len() == 1 { "" } else { "s" },
@@ -260,6 +287,11 @@ impl DetectArgs {
                 String::new()
             } else {
                 format!("({}) ", listed.join(", "))
+            },
+            match tracked {
+                Some(true) => "tracked: ",
+                Some(false) => "whole detector: ",
+                None => "",
             },
         );
         if let Some(annotation) = annotation {
@@ -271,7 +303,12 @@ impl DetectArgs {
             file: path_as_given(path),
             time_ms,
             detections: found.iter().map(Found::detection).collect(),
-            timings: serde_json::to_value(timings).ok(),
+            timings: serde_json::to_value(timings).ok().map(|mut value| {
+                if let (Some(tracked), Some(map)) = (tracked, value.as_object_mut()) {
+                    map.insert("tracked".into(), tracked.into());
+                }
+                value
+            }),
         };
         Ok((entry, line))
     }
@@ -348,12 +385,24 @@ impl DetectArgs {
             // A file that is no camera at all is one error, not one per image.
             check_camera_file(path, text)?;
         }
+        let tracker = self.track.then(|| {
+            std::sync::Mutex::new(Tracker::new(TrackParams {
+                redetect_every: self.redetect_every,
+                ..TrackParams::default()
+            }))
+        });
         // Images in parallel on all cores: the network's own kernels leave the second core idle
         // much of the time on small images.
         use rayon::prelude::*;
         let one = |(path, annotation): (&PathBuf, &Option<PathBuf>)| {
             let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                self.detect_one(&detector, path, camera, annotation.as_deref())
+                self.detect_one(
+                    &detector,
+                    path,
+                    camera,
+                    annotation.as_deref(),
+                    tracker.as_ref(),
+                )
             }))
             .unwrap_or_else(|_| {
                 // A fault of ours: the other images keep their results and the run says which
@@ -372,7 +421,7 @@ impl DetectArgs {
             outcome.map(|(entry, _)| entry)
         };
         let pairs = self.images.iter().zip(&annotations);
-        let results: Vec<Result<ImageDetections>> = if self.sequential {
+        let results: Vec<Result<ImageDetections>> = if self.sequential || self.track {
             pairs.map(one).collect()
         } else {
             let pairs: Vec<_> = pairs.collect();
@@ -835,6 +884,8 @@ mod tests {
             refine: RefineMode::Full,
             annotate: None,
             max_pixels: tagsmith::image::Limits::DEFAULT_MAX_PIXELS,
+            track: false,
+            redetect_every: 10,
         };
         let e = args.run().unwrap_err();
         assert_eq!(e.exit_code(), 2);

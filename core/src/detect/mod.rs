@@ -19,5 +19,5 @@ pub use detection::{
     BenchDetector, DetectedKeypoint, Detection, DetectionsFile, ImageDetections, Scores,
 };
 #[cfg(feature = "detect")]
-pub use detector::{Detector, DetectorOptions, Found, Timings};
+pub use detector::{Detector, DetectorOptions, Found, Frame, Timings, TrackParams, Tracker};
 pub use report::{MarkerReport, PoseReport};

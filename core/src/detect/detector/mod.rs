@@ -13,6 +13,9 @@
 mod read;
 mod reconcile;
 pub mod sources;
+mod track;
+
+pub use track::{Frame, TrackParams, Tracker};
 
 use super::cells::CellReader;
 use super::precheck::PreCheck;

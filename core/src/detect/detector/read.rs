@@ -125,12 +125,50 @@ impl Detector {
         batch: Batch,
         timings: &mut Timings,
     ) -> Vec<Option<Found>> {
+        self.read_by(
+            None,
+            &self.options.read,
+            image,
+            proposals,
+            camera,
+            batch,
+            timings,
+        )
+    }
+
+    /// [`Detector::read_all`] with the family of `self.readers[reader]` alone, read as `read`
+    /// says.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn read_one_family(
+        &self,
+        reader: usize,
+        read: &ReadOptions,
+        image: &GrayImage,
+        proposals: &[Proposal],
+        camera: Option<&Camera>,
+        batch: Batch,
+        timings: &mut Timings,
+    ) -> Vec<Option<Found>> {
+        self.read_by(Some(reader), read, image, proposals, camera, batch, timings)
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn read_by(
+        &self,
+        only: Option<usize>,
+        read_options: &ReadOptions,
+        image: &GrayImage,
+        proposals: &[Proposal],
+        camera: Option<&Camera>,
+        batch: Batch,
+        timings: &mut Timings,
+    ) -> Vec<Option<Found>> {
         let rois: Vec<[[f64; 2]; 4]> = proposals.iter().map(|p| p.corners).collect();
         let verified = self.verify(image, &rois, batch, timings);
         let clock = Stopwatch::start();
         let mut best: Vec<Option<Found>> = vec![None; proposals.len()];
-        for (reader, checked) in self.readers.iter().zip(verified) {
-            if checked.is_empty() {
+        for (r, (reader, checked)) in self.readers.iter().zip(verified).enumerate() {
+            if checked.is_empty() || only.is_some_and(|o| o != r) {
                 continue;
             }
             // The first stage-2 pass over every verified quad in one batch (and the retries from
@@ -140,7 +178,7 @@ impl Detector {
             timings.reads += checked_rois.len();
             let options = ReadOptions {
                 retried_rois: batch.params.retried_rois,
-                ..self.options.read
+                ..*read_options
             };
             let (first_reads, passes) =
                 reader
@@ -151,26 +189,27 @@ impl Detector {
             for (i, first) in checked.iter().zip(first_reads) {
                 firsts[*i] = first;
             }
-            let later_passes = self.options.read.iterations.saturating_sub(1);
-            let read: Vec<(usize, Stage2Result)> = firsts
+            let read: Vec<(usize, Stage2Result, usize)> = firsts
                 .into_par_iter()
                 .enumerate()
                 .with_max_len(1)
                 .filter_map(|(i, first)| {
+                    let first = first?;
+                    let passes = read_options.iterations.saturating_sub(1);
                     let marker = reader.stage2.continue_from(
                         image,
-                        first?,
-                        &self.options.read,
+                        first,
+                        read_options,
                         camera.map(|c| (c, reader.side_m)),
                     )?;
-                    Some((i, marker))
+                    Some((i, marker, passes))
                 })
                 .collect();
-            timings.passes += later_passes * read.len();
+            timings.passes += read.iter().map(|(_, _, passes)| passes).sum::<usize>();
+            let read = read.into_iter().map(|(i, m, _)| (i, m));
             let accept = &self.options.accept;
-            let read = read
-                .into_iter()
-                .filter(|(i, m)| reader.accepts(m, batch.trust, proposals[*i].score, accept));
+            let read =
+                read.filter(|(i, m)| reader.accepts(m, batch.trust, proposals[*i].score, accept));
             keep_fewest_corrections(&mut best, reader, proposals, read, false);
         }
         timings.read_ms += clock.ms();

@@ -1,6 +1,7 @@
 use super::reconcile::{reconcile, Evidence};
 use super::sources::{Source, Trust};
 use super::*;
+use crate::geometry::largest_corner_move;
 
 #[test]
 fn a_family_without_weights_is_named_with_the_command_that_trains_them() {
@@ -470,4 +471,60 @@ fn clutter_costs_a_bounded_number_of_stage_2_passes() {
     assert!(found.is_empty(), "{found:?}");
     // At most 100 passes a family (two families: 171 when this bound was set).
     assert!(t.passes <= 200, "{t}");
+}
+
+/// A 36h11 marker (ID 7, about 90 px across) on a light gray ground at `(x, y)`.
+fn marker_at(x: u32, y: u32) -> GrayImage {
+    let family = crate::builtin::get("apriltag-36h11").unwrap().unwrap();
+    let template = crate::render::template::rectified_template(&family, 7, 128).unwrap();
+    let mut image = GrayImage::new(400, 300, 190);
+    for v in 0..template.height {
+        for u in 0..template.width {
+            image.pixels[((y + v) * image.width + x + u) as usize] = template.get(u, v);
+        }
+    }
+    image
+}
+
+/// Tracking follows a moving marker with stage 2 alone, running the whole detector on the first
+/// frame, after the marker is lost and when it comes back.
+#[test]
+fn tracking_follows_a_moving_marker_and_runs_stage_1_only_when_needed() {
+    let family = crate::builtin::get("apriltag-36h11").unwrap().unwrap();
+    let detector = Detector::shipped(vec![family]).unwrap();
+    let mut tracker = Tracker::new(TrackParams {
+        redetect_every: 50,
+        ..TrackParams::default()
+    });
+    let mut fulls = Vec::new();
+    let mut last: Option<[[f64; 2]; 4]> = None;
+    for k in 0..6u32 {
+        let frame = tracker.next(&detector, &marker_at(60 + 6 * k, 40 + 4 * k), None);
+        assert_eq!(frame.found.len(), 1, "frame {k}");
+        assert_eq!(frame.found[0].marker.id, 7);
+        let corners = frame.found[0].marker.corners;
+        if let Some(before) = last {
+            // Each frame moves the marker by (6, 4) px.
+            let moved: [[f64; 2]; 4] = before.map(|[x, y]| [x + 6.0, y + 4.0]);
+            assert!(largest_corner_move(&moved, &corners) < 1.0, "frame {k}");
+        }
+        if !frame.full {
+            assert_eq!(frame.timings.propose_ms, 0.0);
+            assert!(frame.timings.passes <= 1, "{}", frame.timings);
+        }
+        last = Some(corners);
+        fulls.push(frame.full);
+    }
+    // The marker leaves the view, then comes back.
+    let gone = tracker.next(&detector, &GrayImage::new(400, 300, 190), None);
+    assert!(gone.found.is_empty());
+    fulls.push(gone.full);
+    let back = tracker.next(&detector, &marker_at(100, 60), None);
+    assert_eq!(back.found.len(), 1);
+    fulls.push(back.full);
+    assert_eq!(
+        fulls,
+        [true, false, false, false, false, false, true, true],
+        "whole detector per frame"
+    );
 }

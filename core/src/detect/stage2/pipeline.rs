@@ -289,8 +289,8 @@ impl Stage2 {
     ) -> Option<Stage2Result> {
         let mut roi = first.corners;
         let from_keypoints = first.from_keypoints;
-        let mut result = first;
         let mut passes_agree = true;
+        let mut result = first;
         for pass in 1..options.iterations.max(1) {
             match self.pass(image, &roi) {
                 Some(mut r) => {
