@@ -7,24 +7,19 @@ use clap::Args;
 use std::path::{Path, PathBuf};
 use tagsmith::detect::annotate::{annotate, annotate_all, Overlay};
 use tagsmith::detect::detector::FamilyReader;
-use tagsmith::detect::refine::RefineMode;
-use tagsmith::detect::stage1::group::GroupOptions;
 use tagsmith::detect::stage1::Stage1;
 use tagsmith::detect::stage2::shipped_families;
-use tagsmith::detect::stage2::{ReadOptions, Stage2};
+use tagsmith::detect::stage2::Stage2;
 use tagsmith::detect::MarkerReport;
 use tagsmith::detect::{BenchDetector, DetectionsFile, Detector, Found, ImageDetections};
 use tagsmith::detect::{TrackParams, Tracker};
 use tagsmith::family::Family;
 use tagsmith::geometry::Camera;
 use tagsmith::image::GrayImage;
+use tagsmith_studio::settings::DetectorSettings;
 
 /// Passes beyond the second rarely move a keypoint; each costs a full network run, and a million
 /// of them made `detect` look hung.
-fn iterations() -> clap::builder::RangedU64ValueParser<usize> {
-    clap::builder::RangedU64ValueParser::<usize>::new().range(1..=10)
-}
-
 #[derive(Args, Debug)]
 pub struct DetectArgs {
     /// Images: PNG, JPEG, BMP, TIFF, WebP or PNM (colour is converted to gray).
@@ -54,42 +49,8 @@ pub struct DetectArgs {
     /// Marker size in mm (ROI side) for the pose [default: each family's print size].
     #[arg(long)]
     pub side_mm: Option<f64>,
-    /// Stage-2 passes (the second starts from the first's keypoints, also when the first decodes
-    /// nothing, a read then kept only if `--refine full` aligns it) [range: 1..=10].
-    #[arg(long, default_value_t = 2, value_parser = iterations())]
-    pub iterations: usize,
-    /// After stage 2: none (its keypoints as they are), keypoints (one homography through all
-    /// of them), full (that homography aligned with the image against the family's rendering of
-    /// the decoded ID).
-    #[arg(long, default_value = "full", value_parser = refine_mode())]
-    pub refine: RefineMode,
-    /// Stage 1's corner confidence threshold (lower finds more, costs more stage-2 reads)
-    /// [range: (0, 1)].
-    #[arg(long, default_value_t = GroupOptions::default().corner, value_parser = unit_interval())]
-    pub corner_threshold: f32,
-    /// Stage 1 also looks at the image enlarged twice: finds markers down to about 10 px wide
-    /// (from about 20 px), at four times stage 1's cost on the full-size image.
-    #[arg(long)]
-    pub upsample: bool,
-    /// Skip the searches for the steep views the network's grouping misses: stage 1's weaker
-    /// corners joined where the image shows a quad's sides, quads traced around dark blobs where
-    /// the network sees a marker (its mask or its corners), and the network's closer look (twice
-    /// the size) and stretched look (four times across a corner's direction) around its strong
-    /// corners that no read accounts for (together a few ms on a typical image, about 30 ms on
-    /// a cluttered photograph).
-    #[arg(long)]
-    pub no_outline: bool,
-    /// Read only through stage 2's network: no cell reads straight off the image for the ROIs
-    /// it reads nothing from, nor for the traced quads past its reads, and no second network
-    /// read from the marker frame the cells fitted (black-and-white grid families).
-    #[arg(long)]
-    pub no_cell_reads: bool,
-    /// Skip the edge fits: quads of four of stage 1's corners whose sides the image's edges
-    /// confirm, and second reads of the ROIs nothing read once their four sides are fitted to
-    /// those edges (a far steep sliver reads only from corners within about a pixel; a few ms
-    /// on images with markers left unread or clutter).
-    #[arg(long)]
-    pub no_edge_fits: bool,
+    #[command(flatten)]
+    pub detector: DetectorSettings,
     /// Write the detections file (the harness's format, for `tagsmith eval score`); images that
     /// could not be detected are listed under "failed" with their error.
     #[arg(long)]
@@ -127,18 +88,6 @@ pub struct DetectArgs {
         value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=10_000)
     )]
     pub redetect_every: usize,
-}
-
-fn unit_interval() -> impl clap::builder::TypedValueParser<Value = f32> {
-    use clap::builder::TypedValueParser;
-    clap::builder::StringValueParser::new().try_map(|s| {
-        let v: f32 = s.parse().map_err(|e| format!("{e}"))?;
-        if v > 0.0 && v < 1.0 {
-            Ok(v)
-        } else {
-            Err(format!("{v} is not in (0, 1)"))
-        }
-    })
 }
 
 impl DetectArgs {
@@ -189,11 +138,7 @@ impl DetectArgs {
         let (camera, camera_source) = self.camera_for(&image)?;
         let side_mm = self.side_mm(&family)?;
         let model = load_model(self.model.as_deref(), &family)?;
-        let options = ReadOptions {
-            iterations: self.iterations,
-            refine: self.refine,
-            ..ReadOptions::default()
-        };
+        let options = self.detector.read_options();
         let found = model.detect(&image, &roi, &options, Some((&camera, side_mm / 1000.0)));
         if let Some(path) = &self.annotate {
             let keypoints: Vec<_> = found
@@ -250,7 +195,7 @@ impl DetectArgs {
             .map(|(file, text)| parse_camera(file, text, (image.width, image.height)))
             .transpose()
             .map_err(|e| e.concerning(path.display()))?;
-        if self.upsample {
+        if self.detector.upsample {
             let doubled = 4 * image.width as u64 * image.height as u64;
             if doubled > self.max_pixels {
                 return Err(bad_input!(
@@ -339,19 +284,7 @@ impl DetectArgs {
             None => Stage1::shipped()?,
         };
         let mut detector = Detector::new(stage1, readers).failure()?;
-        detector.options.read = ReadOptions {
-            iterations: self.iterations,
-            refine: self.refine,
-            ..ReadOptions::default()
-        };
-        detector.options.propose.group.corner = self.corner_threshold;
-        detector.options.propose.upsample = self.upsample;
-        detector
-            .options
-            .propose
-            .set_image_searches(!self.no_outline);
-        detector.options.cell_reads = !self.no_cell_reads;
-        detector.options.edge_fits = !self.no_edge_fits;
+        self.detector.apply(&mut detector.options);
         // Every output is checked before the first image is read: a run that would replace one
         // of its own inputs, or write into a file as if it were a folder, is refused whole.
         let inputs = Inputs::of(&self.images);
@@ -485,12 +418,6 @@ pub struct DetectSetArgs {
     /// (uniform), standing in for stage 1's error.
     #[arg(long, default_value_t = 0.05)]
     pub roi_noise: f64,
-    /// Stage-2 passes per ROI [range: 1..=10].
-    #[arg(long, default_value_t = 2, value_parser = iterations())]
-    pub iterations: usize,
-    /// After stage 2: none, keypoints or full (as `detect --refine`).
-    #[arg(long, default_value = "full", value_parser = refine_mode())]
-    pub refine: RefineMode,
     /// Only the protocol's Normal images (≤ 50 cm, ≤ 60°).
     #[arg(long)]
     pub normal_only: bool,
@@ -501,20 +428,9 @@ pub struct DetectSetArgs {
     /// Stage-1 model file for --full [default: the shipped one].
     #[arg(long)]
     pub stage1: Option<PathBuf>,
-    /// With --full: stage 1 also on the image enlarged twice (as `detect --upsample`).
-    #[arg(long)]
-    pub upsample: bool,
-    /// With --full: no outlined or traced quads, no closer or stretched looks (as `detect
-    /// --no-outline`).
-    #[arg(long)]
-    pub no_outline: bool,
-    /// With --full: no cell reads (as `detect --no-cell-reads`).
-    #[arg(long)]
-    pub no_cell_reads: bool,
-    /// With --full: no quads of corners confirmed by the image's edges, no second reads of ROIs
-    /// fitted to them (as `detect --no-edge-fits`).
-    #[arg(long)]
-    pub no_edge_fits: bool,
+    /// How the detector runs (`--iterations` and `--refine` also without --full).
+    #[command(flatten)]
+    pub detector: DetectorSettings,
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
 }
@@ -547,11 +463,7 @@ impl DetectSetArgs {
             return Err(bad_input!("--roi-noise must be in [0, 0.5)"));
         }
         let model = load_model(self.model.as_deref(), &family)?;
-        let read = ReadOptions {
-            iterations: self.iterations,
-            refine: self.refine,
-            ..ReadOptions::default()
-        };
+        let read = self.detector.read_options();
         let normal_only = self.normal_only;
         let include = |img: &set::BenchImage| {
             !normal_only || matches!(img.group, Group::Protocol { normal: true, .. })
@@ -565,14 +477,7 @@ impl DetectSetArgs {
             reader.side_m = s.side_m;
             let mut detector = Detector::new(stage1, vec![reader]).failure()?;
             detector.camera = Some(s.camera);
-            detector.options.read = read;
-            detector.options.propose.upsample = self.upsample;
-            detector
-                .options
-                .propose
-                .set_image_searches(!self.no_outline);
-            detector.options.cell_reads = !self.no_cell_reads;
-            detector.options.edge_fits = !self.no_edge_fits;
+            self.detector.apply(&mut detector.options);
             let file = set::run_detector(&self.set, &s, &mut detector, &include)?;
             let json = serde_json::to_string_pretty(&file).failure()?;
             write_output(&self.output, json.as_bytes())?;
@@ -606,8 +511,8 @@ impl DetectSetArgs {
             "{} images, stage 2 per ROI: median {:.2} ms ({} passes, refine {}); wrote {}",
             file.images.len(),
             median(times),
-            self.iterations,
-            self.refine.name(),
+            self.detector.iterations,
+            self.detector.refine.name(),
             self.output.display()
         );
         let refinements = detector.refinements();
@@ -630,12 +535,6 @@ impl DetectSetArgs {
         }
         Ok(())
     }
-}
-
-fn refine_mode() -> impl clap::builder::TypedValueParser<Value = RefineMode> {
-    use clap::builder::TypedValueParser;
-    clap::builder::PossibleValuesParser::new(RefineMode::NAMES)
-        .map(|s| s.parse::<RefineMode>().expect("one of the names"))
 }
 
 fn parse_roi(text: &str) -> Result<[[f64; 2]; 4]> {
@@ -872,16 +771,10 @@ mod tests {
             camera: None,
             model: None,
             stage1: None,
-            corner_threshold: 0.3,
-            upsample: false,
-            no_outline: false,
-            no_cell_reads: false,
-            no_edge_fits: false,
+            detector: DetectorSettings::default(),
             json: None,
             sequential: false,
             side_mm: None,
-            iterations: 2,
-            refine: RefineMode::Full,
             annotate: None,
             max_pixels: tagsmith::image::Limits::DEFAULT_MAX_PIXELS,
             track: false,

@@ -27,10 +27,10 @@ pub const SAMPLES: &[(&str, &[u8])] = &[
 use super::files::{OpenedFile, Purpose};
 use super::preview::{category_colour, gray_image};
 use super::Studio;
+use crate::settings::DetectorSettings;
 use egui::{Color32, Pos2, Rect, Stroke, Vec2};
 use tagsmith::detect::annotate::{annotate_all, Overlay};
 use tagsmith::detect::detector::FamilyReader;
-use tagsmith::detect::stage1::group::GroupOptions;
 use tagsmith::detect::stage1::Stage1;
 use tagsmith::detect::stage2::{shipped_families, Stage2};
 use tagsmith::detect::{BenchDetector, DetectionsFile, Detector, Found, ImageDetections, Timings};
@@ -59,13 +59,8 @@ pub struct DetectState {
     /// The design being edited, when a model trained in the Train panel is attached to it:
     /// its family, model file and whether to detect it.
     pub design: Option<(tagsmith::family::Family, std::path::PathBuf, bool)>,
-    pub corner_threshold: f32,
-    /// Stage 1 also on the image enlarged twice (markers down to about 10 px).
-    pub upsample: bool,
-    /// The searches for steep views: stage 1's weaker corners joined where the image outlines
-    /// a quad, quads traced around dark blobs, and the network's closer and stretched looks at
-    /// unread corners.
-    pub outline: bool,
+    /// How the detector runs: the same settings as `tagsmith detect`'s flags.
+    pub settings: DetectorSettings,
     pub image: Option<LoadedImage>,
     pub result: Option<DetectResult>,
     /// The loaded detector and the families it was built for.
@@ -125,9 +120,7 @@ impl Default for DetectState {
         Self {
             families: shipped_families().map(|f| (f.to_string(), true)).collect(),
             design: None,
-            corner_threshold: GroupOptions::default().corner,
-            upsample: false,
-            outline: true,
+            settings: DetectorSettings::default(),
             image: None,
             result: None,
             detector: None,
@@ -215,9 +208,7 @@ impl DetectState {
             self.detector = Some((chosen, detector));
         }
         let (_, detector) = self.detector.as_mut().expect("built above");
-        detector.options.propose.group.corner = self.corner_threshold;
-        detector.options.propose.upsample = self.upsample;
-        detector.options.propose.set_image_searches(self.outline);
+        self.settings.apply(&mut detector.options);
         Ok(())
     }
 
@@ -473,8 +464,8 @@ pub fn show(studio: &mut Studio, ui: &mut egui::Ui, ctx: &egui::Context) {
             }
         }
         ui.separator();
-        let slider =
-            egui::Slider::new(&mut state.corner_threshold, 0.05..=0.95).text("corner threshold");
+        let slider = egui::Slider::new(&mut state.settings.corner_threshold, 0.05..=0.95)
+            .text("corner threshold");
         if ui
             .add(slider)
             .on_hover_text("stage 1's corner confidence: lower finds more, costs more time")
@@ -483,7 +474,7 @@ pub fn show(studio: &mut Studio, ui: &mut egui::Ui, ctx: &egui::Context) {
             state.stale = true;
         }
         if ui
-            .checkbox(&mut state.upsample, "tiny markers")
+            .checkbox(&mut state.settings.upsample, "tiny markers")
             .on_hover_text(
                 "stage 1 also looks at the image enlarged twice: finds markers down to about \
                  10 px wide, stage 1 takes about five times as long",
@@ -492,8 +483,9 @@ pub fn show(studio: &mut Studio, ui: &mut egui::Ui, ctx: &egui::Context) {
         {
             state.stale = true;
         }
+        let mut steep_views = !state.settings.no_outline;
         if ui
-            .checkbox(&mut state.outline, "steep views")
+            .checkbox(&mut steep_views, "steep views")
             .on_hover_text(
                 "stage 1's weaker corners are also joined where the image shows a quad's sides, \
                  and quads are traced around dark blobs the network calls marker: finds markers \
@@ -501,6 +493,7 @@ pub fn show(studio: &mut Studio, ui: &mut egui::Ui, ctx: &egui::Context) {
             )
             .changed()
         {
+            state.settings.no_outline = !steep_views;
             state.stale = true;
         }
     });
