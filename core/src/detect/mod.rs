@@ -3,10 +3,14 @@
 //! interface the evaluation harness runs.
 
 pub mod annotate;
+#[cfg(feature = "detect")]
+pub(crate) mod blocks;
 pub mod cells;
 mod detection;
 #[cfg(feature = "detect")]
 pub mod detector;
+#[cfg(feature = "detect")]
+pub mod model_file;
 #[cfg(feature = "detect")]
 pub mod plain_net;
 pub mod precheck;

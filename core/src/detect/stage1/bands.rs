@@ -18,8 +18,8 @@ use super::group::Maps;
 use super::net::receptive_radius;
 use super::pipeline::maps_of;
 use super::STRIDE;
+use crate::detect::blocks::Contrast;
 use crate::detect::plain_net::PlainNet;
-use crate::detect::stage2::Contrast;
 use crate::image::GrayImage;
 
 /// Where the largest level is cut: band A is its rows `0..cut + margin`, band B its rows

@@ -4,7 +4,7 @@
 //! the record rather than to check them.
 
 use super::net::{NetConfig, Stage1Net};
-use crate::detect::stage2::model_file::{
+use crate::detect::model_file::{
     check_range, check_weight_size, checked_weights, fnv1a, load_weights, pack, read_model_file,
     unpack, weight_bytes, ModelError, MAX_STEPS, WIDTHS,
 };

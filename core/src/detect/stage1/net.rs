@@ -10,11 +10,11 @@
 //! small head at one scale serves markers from 12 px to the whole image (≈ 0.15 GMAC per
 //! 640×480 at width 24). See [`macs`].
 
-use crate::detect::plain_net::PlainNet;
-use crate::detect::stage2::net::{
+use crate::detect::blocks::{
     batch_norm_unless, fold_batch_norm, folded_blocks, separable_trunk, stem, trunk_blocks,
     SeparableBlock,
 };
+use crate::detect::plain_net::PlainNet;
 use burn::module::Module;
 use burn::nn::conv::{Conv2d, Conv2dConfig};
 use burn::nn::{BatchNorm, BatchNormConfig};
@@ -72,7 +72,7 @@ impl Stage1Net {
     }
 
     /// The network for inference: every batch norm folded into its convolution (the same
-    /// function without the batch norms' passes; see `stage2::net::fold_batch_norm`).
+    /// function without the batch norms' passes; see `blocks::fold_batch_norm`).
     pub fn fold_batch_norms(mut self) -> Self {
         if !self.folded {
             fold_batch_norm(&mut self.stem, &self.stem_bn);

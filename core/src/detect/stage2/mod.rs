@@ -19,6 +19,8 @@ pub mod net;
 pub mod pipeline;
 
 #[cfg(feature = "detect")]
+pub use crate::detect::blocks::Contrast;
+#[cfg(feature = "detect")]
 pub use pipeline::{ReadOptions, Stage2, Stage2Result};
 
 use crate::image::GrayImage;
@@ -56,38 +58,6 @@ pub fn shipped_model(family: &str) -> Option<&'static [u8]> {
 /// gray levels and lighting (black is not 0, white not 255 in the training data) do not matter.
 pub fn normalise_patch(patch: &GrayImage) -> Vec<f32> {
     Contrast::of(patch).normalise(patch)
-}
-
-/// The mean and the scale that [`normalise_patch`] maps an image's pixels with: taken from one
-/// image, they can normalise another (a crop as it looks within the whole image).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Contrast {
-    mean: f32,
-    scale: f32,
-}
-
-impl Contrast {
-    pub fn of(image: &GrayImage) -> Self {
-        let n = image.pixels.len().max(1) as f32;
-        let mean = image.pixels.iter().map(|&p| p as f32).sum::<f32>() / n;
-        let var = image
-            .pixels
-            .iter()
-            .map(|&p| (p as f32 - mean).powi(2))
-            .sum::<f32>()
-            / n;
-        // A flat patch has no contrast to normalise; 8 gray levels keeps its noise from blowing up.
-        Self {
-            mean,
-            scale: 1.0 / var.sqrt().max(8.0),
-        }
-    }
-
-    pub fn normalise(&self, image: &GrayImage) -> Vec<f32> {
-        (image.pixels.iter())
-            .map(|&p| (p as f32 - self.mean) * self.scale)
-            .collect()
-    }
 }
 
 #[cfg(all(test, feature = "learn"))]
