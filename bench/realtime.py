@@ -31,10 +31,7 @@ import cv2
 sys.path.insert(0, os.path.dirname(__file__))
 from baselines import FAMILIES, apriltag_detector, opencv_detector  # noqa: E402
 from realimages import matched, opencv_reference, swarmathon_reference  # noqa: E402
-
-SOURCES = ["stage1", "outline", "traced", "close-look", "stretched-look", "corner-quads",
-           "edge-refits", "cell-reads"]
-
+from sources import print_tally  # noqa: E402
 
 def best_of(detect, gray, runs=3):
     best, found = float("inf"), []
@@ -74,7 +71,7 @@ def main():
         paths = sorted(p for ext in ("jpg", "jpeg", "png") for p in glob.glob(os.path.join(folder, f"*.{ext}")))
         groups.append((f"{os.path.basename(folder.rstrip('/'))} ({family})", family, paths, None))
 
-    sources = {s: [0.0, 0, 0, 0] for s in SOURCES}
+    entries_all = []
     print("| photographs | detector | median ms | min–max ms | ROIs / image | stage-2 passes / image | "
           "reference markers found | markers reported |")
     print("|---|---|---|---|---|---|---|---|")
@@ -84,13 +81,7 @@ def main():
         entries = tagsmith(a.tagsmith, family, images)
         rows["Tagsmith"] = ([e["time_ms"] for e in entries], [e["detections"] for e in entries],
                             [e.get("timings") or {} for e in entries])
-        for t in rows["Tagsmith"][2]:
-            for s, tally in zip(SOURCES, t.get("sources", [])):
-                acc = sources[s]
-                acc[0] += tally["propose_ms"] + tally["read_ms"]
-                acc[1] += tally["proposals"]
-                acc[2] += tally["reads"]
-                acc[3] += tally["found"]
+        entries_all += entries
         dictionary, april = FAMILIES[family]
         baselines = [("OpenCV ArUco", opencv_detector(dictionary))]
         if april:
@@ -117,10 +108,8 @@ def main():
                   f"{min(times):.1f}–{max(times):.1f} | {rois} | {passes} | {recall} | "
                   f"{sum(len(f) for f in found)} |")
     print()
-    print("| proposal source | ms (propose + verify + read), all images | quads proposed | stage-2 reads | markers read |")
-    print("|---|---|---|---|---|")
-    for s, (ms, proposed, reads, found) in sources.items():
-        print(f"| {s} | {ms:.0f} | {proposed} | {reads} | {found} |")
+    print("Tagsmith's phases and proposal sources over every photograph above:")
+    print_tally(entries_all)
     sys.stdout.flush()
     os._exit(0)
 

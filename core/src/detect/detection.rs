@@ -77,6 +77,11 @@ pub struct DetectionsFile {
 pub trait BenchDetector {
     fn name(&self) -> String;
     fn detect(&mut self, image: &GrayImage) -> Vec<Detection>;
+    /// [`BenchDetector::detect`], and where the time went for a detector that times its own
+    /// steps (what `tagsmith detect --json` writes as an image's `timings`).
+    fn detect_timed(&mut self, image: &GrayImage) -> (Vec<Detection>, Option<serde_json::Value>) {
+        (self.detect(image), None)
+    }
     /// The harness shows each image's ground truth before [`BenchDetector::detect`], untimed. Real
     /// detectors ignore it; a stage measured on its own (stage 2 from perturbed true ROIs, in
     /// place of stage 1) takes its input from it.

@@ -432,12 +432,12 @@ pub fn run_detector(
         let gray = crate::image::read(&dir.join(&img.file), &Default::default())?;
         detector.observe_truth(&img.truth);
         let start = Instant::now();
-        let detections = detector.detect(&gray);
+        let (detections, timings) = detector.detect_timed(&gray);
         images.push(ImageDetections {
             file: img.file.clone(),
             time_ms: start.elapsed().as_secs_f64() * 1e3,
             detections,
-            timings: None,
+            timings,
         });
     }
     Ok(DetectionsFile {

@@ -492,11 +492,13 @@ impl BenchDetector for Detector {
     }
 
     fn detect(&mut self, image: &GrayImage) -> Vec<Detection> {
-        Detector::detect(self, image)
-            .0
-            .iter()
-            .map(Found::detection)
-            .collect()
+        self.detect_timed(image).0
+    }
+
+    fn detect_timed(&mut self, image: &GrayImage) -> (Vec<Detection>, Option<serde_json::Value>) {
+        let (found, timings) = Detector::detect(self, image);
+        let detections = found.iter().map(Found::detection).collect();
+        (detections, serde_json::to_value(timings).ok())
     }
 }
 
