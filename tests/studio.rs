@@ -754,6 +754,43 @@ fn the_steep_views_switch_searches_as_detect_no_outline_does() {
     assert_eq!(listed_count(&h), cli_count(SAMPLE, &["--no-outline"]));
 }
 
+/// Detect panel → "Play as video": the opened photograph plays as a moving sequence; Pause
+/// stops it, Step reads one frame more, each with tracking (the whole detector on the first
+/// frame only here), the same markers as on the photograph, and Stop ends it.
+#[test]
+fn a_photograph_plays_as_video_with_tracking_paused_and_stepped() {
+    const SAMPLE: &str = "aruco-6x6_250-tutorial.jpg";
+    let s = setup();
+    let mut h = studio(&s);
+    detect_sample(&mut h, SAMPLE);
+    let on_the_photo = listed_count(&h);
+    h.get_by_label("Play as video").click();
+    // Playing repaints frame after frame: a few of them, then pause.
+    h.run_steps(4);
+    h.get_by_label("Pause").click();
+    h.run();
+    let shown = |h: &Harness<'static, Studio>| h.state().detect.sequence.as_ref().unwrap().shown;
+    let paused_at = shown(&h).expect("a frame was read before the pause");
+    h.run();
+    assert_eq!(shown(&h), Some(paused_at), "a paused video stays on its frame");
+    for _ in 0..3 {
+        h.get_by_label("Step").click();
+        h.run();
+    }
+    assert_eq!(shown(&h), Some(paused_at + 3));
+    let sequence = h.state().detect.sequence.as_ref().unwrap();
+    let wholes: Vec<bool> = sequence.times.iter().map(|(_, full)| *full).collect();
+    assert!(wholes[0], "the first frame runs the whole detector");
+    assert!(
+        wholes[1..].iter().filter(|full| !**full).count() >= wholes.len() / 2,
+        "{wholes:?}"
+    );
+    assert_eq!(listed_count(&h), on_the_photo);
+    h.get_by_label("Stop").click();
+    h.run();
+    assert!(h.state().detect.sequence.is_none());
+}
+
 /// Train panel: an unsaved design is refused in words; once saved, a run starts in the
 /// background, shows progress and writes checkpoints while the window keeps drawing; Stop leaves
 /// a resumable run, Resume finishes it and the model is attached next to the family file.

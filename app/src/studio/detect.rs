@@ -26,6 +26,7 @@ pub const SAMPLES: &[(&str, &[u8])] = &[
 
 use super::files::{OpenedFile, Purpose};
 use super::preview::{category_colour, gray_image};
+use super::sequence::{Sequence, FRAMES};
 use super::Studio;
 use crate::settings::DetectorSettings;
 use egui::{Color32, Pos2, Rect, Stroke, Vec2};
@@ -70,6 +71,8 @@ pub struct DetectState {
     pub scene: SceneSettings,
     /// The test scenes of the last render, one per compared family.
     pub scenes: Vec<TestScene>,
+    /// The opened image played as a video, while it plays or is paused.
+    pub sequence: Option<Sequence>,
 }
 
 /// The synthetic test scene's conditions, the same for both families compared.
@@ -128,6 +131,7 @@ impl Default for DetectState {
             revision: 0,
             scene: SceneSettings::default(),
             scenes: Vec::new(),
+            sequence: None,
         }
     }
 }
@@ -337,6 +341,45 @@ impl DetectState {
         })
     }
 
+    /// Plays the opened image as a video ([`Sequence::moving`]), from its first frame.
+    pub fn play_sequence(&mut self) {
+        if let Some(image) = &self.image {
+            let name = image.name.clone();
+            self.sequence = Some(Sequence::moving(&name, &image.gray, FRAMES));
+        }
+    }
+
+    /// Detects on the sequence's next frame with the detector's tracking and shows it.
+    pub fn step_sequence(&mut self) -> Result<(), String> {
+        self.build_detector()?;
+        let (Some(sequence), Some((_, detector))) = (&mut self.sequence, &self.detector) else {
+            return Ok(());
+        };
+        let Some((index, frame, time_ms)) = sequence.step(detector) else {
+            return Ok(());
+        };
+        let gray = sequence.frames[index].clone();
+        let name = format!(
+            "{} (frame {} of {})",
+            sequence.name,
+            index + 1,
+            sequence.frames.len()
+        );
+        let camera = detector.camera_for(&gray);
+        let axes = (frame.found.iter())
+            .map(|f| pose_axes(detector, f, camera.as_ref()))
+            .collect();
+        self.set_image(name, gray);
+        self.stale = false;
+        self.result = Some(DetectResult {
+            found: frame.found,
+            axes,
+            timings: frame.timings,
+            time_ms,
+        });
+        Ok(())
+    }
+
     fn set_image(&mut self, name: String, gray: GrayImage) {
         self.revision += 1;
         self.image = Some(LoadedImage {
@@ -382,10 +425,66 @@ fn scene_errors(f: &Found, truth: &tagsmith::synth::MarkerTruth) -> (f64, f64, f
     (corners.sqrt(), position, rotation)
 }
 
+/// The video controls: play the opened image as a sequence, pause, step, stop; each frame's
+/// time and the medians so far.
+fn sequence_controls(studio: &mut Studio, ui: &mut egui::Ui, ctx: &egui::Context) {
+    let state = &mut studio.detect;
+    let mut step = false;
+    ui.horizontal_wrapped(|ui| {
+        let Some(sequence) = &mut state.sequence else {
+            let can = state.image.is_some();
+            if ui
+                .add_enabled(can, egui::Button::new("Play as video"))
+                .on_hover_text(
+                    "the image moved along a hand-held camera's path, 60 frames, detected with \
+                     tracking: stage 2 alone on the markers it follows, the whole detector on \
+                     the first frame, every 10 frames and after a loss (detect --track)",
+                )
+                .clicked()
+            {
+                state.play_sequence();
+            }
+            return;
+        };
+        let label = if sequence.playing { "Pause" } else { "Play" };
+        if ui.button(label).clicked() {
+            sequence.playing = !sequence.playing;
+        }
+        step = ui.button("Step").clicked() || sequence.playing;
+        let stop = ui.button("Stop").clicked();
+        if let Some(shown) = sequence.shown {
+            let (ms, full) = sequence.times[shown];
+            let (all, tracked) = sequence.medians();
+            let median = |m: Option<f64>| m.map_or("–".to_string(), |m| format!("{m:.1} ms"));
+            ui.label(format!(
+                "frame {} of {}: {ms:.1} ms ({}); median {}, tracked frames {}",
+                shown + 1,
+                sequence.frames.len(),
+                if full { "whole detector" } else { "tracked" },
+                median(all),
+                median(tracked),
+            ));
+        }
+        if stop {
+            state.sequence = None;
+            step = false;
+        }
+    });
+    if step {
+        if let Err(e) = studio.detect.step_sequence() {
+            studio.error(e);
+        }
+        if studio.detect.sequence.as_ref().is_some_and(|s| s.playing) {
+            ctx.request_repaint();
+        }
+    }
+}
+
 /// An image file opened or dropped: decoded (with the CLI's size limits) and detected on.
 pub fn open_image(studio: &mut Studio, file: OpenedFile) {
     match tagsmith::image::decode(&file.bytes, &Default::default()) {
         Ok(gray) => {
+            studio.detect.sequence = None;
             studio.detect.set_image(file.name.clone(), gray);
             studio.panel = super::Panel::Detect;
             studio.info(format!("opened {}", file.name));
@@ -503,6 +602,7 @@ pub fn show(studio: &mut Studio, ui: &mut egui::Ui, ctx: &egui::Context) {
     egui::CollapsingHeader::new("Test scene")
         .default_open(false)
         .show(ui, |ui| test_scene(studio, ui, ctx));
+    sequence_controls(studio, ui, ctx);
     let state = &studio.detect;
     let (Some(image), Some(result)) = (&state.image, &state.result) else {
         ui.label("Open an image, drop one on the window, or pick a sample.");

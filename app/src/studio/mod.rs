@@ -11,6 +11,7 @@ pub mod files;
 pub mod job;
 pub mod preview;
 pub mod print;
+pub mod sequence;
 pub mod train;
 
 use design::Design;
