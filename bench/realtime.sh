@@ -13,8 +13,16 @@ T=${TAGSMITH:-target/release/tagsmith}
 shared=${SHARED:-../shared}
 extra=()
 for e in "$@"; do extra+=(--extra "$e"); done
-# To a file first: pupil-apriltags under this venv segfaults writing to a closed pipe.
+# To a file first: pupil-apriltags under this venv segfaults writing to a closed pipe, and now
+# and then in a run (2026-12-05: one run in three; none of 6 under -X faulthandler, which would
+# print where), so a crashed run is tried again.
 out=$(mktemp)
-bench/.venv/bin/python bench/realtime.py "$shared/realimages" --tagsmith "$T" "${extra[@]}" >"$out"
+for try in 1 2 3; do
+  if bench/.venv/bin/python -X faulthandler bench/realtime.py "$shared/realimages" --tagsmith "$T" \
+      ${extra[@]+"${extra[@]}"} >"$out"; then
+    break
+  fi
+  echo "realtime.py crashed (try $try of 3)" >&2
+done
 cat "$out"
 rm -f "$out"

@@ -772,7 +772,11 @@ fn a_photograph_plays_as_video_with_tracking_paused_and_stepped() {
     let shown = |h: &Harness<'static, Studio>| h.state().detect.sequence.as_ref().unwrap().shown;
     let paused_at = shown(&h).expect("a frame was read before the pause");
     h.run();
-    assert_eq!(shown(&h), Some(paused_at), "a paused video stays on its frame");
+    assert_eq!(
+        shown(&h),
+        Some(paused_at),
+        "a paused video stays on its frame"
+    );
     for _ in 0..3 {
         h.get_by_label("Step").click();
         h.run();

@@ -20,7 +20,7 @@ pub use track::{Frame, TrackParams, Tracker};
 use super::cells::CellReader;
 use super::precheck::PreCheck;
 use super::stage1::edges::on_edges;
-use super::stage1::group::{same_quad, Proposal};
+use super::stage1::group::{nested, same_quad, Proposal};
 use super::stage1::pipeline::Search;
 use super::stage1::{ProposeOptions, Stage1};
 use super::stage2::model_file::ModelError;
@@ -143,7 +143,8 @@ pub struct SourceTally {
     pub proposals: usize,
     /// Stage-2 reads of them started.
     pub reads: usize,
-    /// Markers read from them (before the reconcile phase).
+    /// Markers read from them that no source before it had read (one marker read from two of
+    /// its quads counts once).
     pub found: usize,
 }
 
@@ -363,7 +364,7 @@ impl Detector {
         tally.read_ms +=
             (timings.read_ms + timings.verify_ms) - (before.read_ms + before.verify_ms);
         tally.reads += timings.reads - before.reads;
-        tally.found += rounds.found.len() - found_before;
+        tally.found += new_markers(&rounds.found, found_before);
     }
 
     /// Up to `params.selections` selections of a source's quads (`select` picks them given what
@@ -400,6 +401,18 @@ impl Detector {
             rounds.record(batch, reads);
         }
     }
+}
+
+/// The markers among `found[before..]` that no read before them covers: what a source read that
+/// the sources before it had not (one marker read from two of its quads counts once).
+fn new_markers(found: &[Found], before: usize) -> usize {
+    (before..found.len())
+        .filter(|&i| {
+            !found[..i]
+                .iter()
+                .any(|f| nested(&f.marker.corners, &found[i].marker.corners))
+        })
+        .count()
 }
 
 /// What every source of one image works on.

@@ -84,18 +84,26 @@ impl Detector {
     /// The verify phase: for each family that may read the batch's quads, the quads it reads.
     /// A source whose quads are mostly clutter has them pass each family's pre-read check first;
     /// the rest fail as stage 2 would have failed them.
+    ///
+    /// A quad its source trusts whatever the corrections (stage 1's first selection, scored at
+    /// least [`AcceptParams::weak_roi_score`]) is not checked: such a ROI a few pixels off
+    /// samples the quiet zone as rim, and a marker read from it at the correction limit would
+    /// be lost.
     fn verify(
         &self,
         image: &GrayImage,
-        rois: &[[[f64; 2]; 4]],
+        proposals: &[Proposal],
         batch: Batch,
         timings: &mut Timings,
     ) -> Vec<Vec<usize>> {
         let clock = Stopwatch::start();
+        let rois: Vec<[[f64; 2]; 4]> = proposals.iter().map(|p| p.corners).collect();
+        let weak = self.options.accept.weak_roi_score;
+        let trusted = |i: usize| batch.trust == Trust::First && proposals[i].score >= weak;
         let sampled = batch
             .params
             .precheck
-            .then(|| self.sample_for_prechecks(image, rois))
+            .then(|| self.sample_for_prechecks(image, &rois))
             .flatten();
         let verified = (self.readers.iter())
             .map(|reader| {
@@ -104,7 +112,7 @@ impl Detector {
                 }
                 match (&reader.precheck, &sampled) {
                     (Some(check), Some(sampled)) => (0..rois.len())
-                        .filter(|&i| check.passes(sampled[i].as_ref()))
+                        .filter(|&i| trusted(i) || check.passes(sampled[i].as_ref()))
                         .collect(),
                     _ => (0..rois.len()).collect(),
                 }
@@ -164,7 +172,7 @@ impl Detector {
         timings: &mut Timings,
     ) -> Vec<Option<Found>> {
         let rois: Vec<[[f64; 2]; 4]> = proposals.iter().map(|p| p.corners).collect();
-        let verified = self.verify(image, &rois, batch, timings);
+        let verified = self.verify(image, proposals, batch, timings);
         let clock = Stopwatch::start();
         let mut best: Vec<Option<Found>> = vec![None; proposals.len()];
         for (r, (reader, checked)) in self.readers.iter().zip(verified).enumerate() {
