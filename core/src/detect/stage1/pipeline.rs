@@ -293,7 +293,7 @@ const CLOSE_LOOK_LEAD: f64 = 0.5;
 const CORNER_QUAD_SCORE: f64 = 0.3;
 const CORNER_QUAD_CORNERS: usize = 24;
 const CORNER_QUAD_SPAN: f64 = 120.0;
-const CORNER_QUAD_FITS: usize = 300;
+const CORNER_QUAD_FITS: usize = 60;
 
 /// Stretched looks per image at most: each runs the network on a 256 × 160 crop, about 2 ms.
 const STRETCHED_LOOKS: usize = 6;
