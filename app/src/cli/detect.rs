@@ -1,4 +1,4 @@
-//! `detect` and `detect-set`: the learned stage-2 detector on images.
+//! `detect` and `detect-set`: the whole detector (or stage 2 on given ROIs) on images and benchmark sets.
 
 use super::common::{load_family, output_folder, progress_bar, write_output};
 use super::error::{bad_input, failure, Classify, CliError, Concerning, Result};

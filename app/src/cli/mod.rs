@@ -23,7 +23,8 @@ use error::Result;
 #[command(
     name = "tagsmith",
     version,
-    about = "Design, render and print fiducial-marker families"
+    about = "Design fiducial-marker families, print them, train their learned detector and detect them in \
+             images"
 )]
 pub struct Cli {
     #[command(subcommand)]
@@ -54,11 +55,16 @@ pub enum Command {
     /// The evaluation harness: benchmark sets, scoring of detections.
     #[command(subcommand)]
     Eval(eval::EvalCommand),
-    /// Train a detector network for a family (stage 2: keypoints on rectified patches).
+    /// Train a detector network: stage 2 of a family (`--stage keypoints`: keypoints and symbols on
+    /// rectified patches) or stage 1 (`--stage roi`: marker ROIs in whole scenes); a killed run
+    /// resumes from its checkpoint.
     Train(train::TrainArgs),
-    /// Decode the marker in a ROI of an image with the learned stage 2: ID, keypoints, pose (JSON).
+    /// Find and read every marker of the chosen families in images (stage 1 and the image
+    /// searches propose, stage 2 reads, the pose comes from all keypoints): a line per image,
+    /// the detections file with --json, video frames with --track, or one known ROI with --roi.
     Detect(detect::DetectArgs),
-    /// Run the learned stage 2 on a benchmark set from perturbed ground-truth ROIs (detections file).
+    /// Run the detector on a benchmark set (detections file for `eval score`): stage 2 from the
+    /// true ROIs moved by --roi-noise, or the whole detector with --full.
     DetectSet(detect::DetectSetArgs),
 }
 

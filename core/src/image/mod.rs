@@ -67,6 +67,20 @@ pub fn luminance(r: f32, g: f32, b: f32) -> f32 {
     LUMA_WEIGHTS[0] * r + LUMA_WEIGHTS[1] * g + LUMA_WEIGHTS[2] * b
 }
 
+/// The 8-bit gray of an 8-bit encoded RGB colour: the conversion every decoded colour photograph
+/// goes through, so that pixels handed over by a caller (the Python package's arrays) read as
+/// the same file read from disk.
+#[inline]
+pub fn gray_of_rgb8(r: u8, g: u8, b: u8) -> u8 {
+    quantise_unit(luminance(r as f32, g as f32, b as f32) / 255.0)
+}
+
+/// A 0–1 level as 8 bits, rounded.
+#[inline]
+pub(crate) fn quantise_unit(v: f32) -> u8 {
+    (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
+}
+
 /// Interpolates the four pixels around a point: `top_left`, `top_right`, `bottom_left`,
 /// `bottom_right`, with `fx`, `fy` its fractional position between them.
 #[inline]

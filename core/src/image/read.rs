@@ -348,7 +348,7 @@ fn is_supported(format: ImageFormat) -> bool {
 /// Gray from any decoded layout, each channel normalised to 0–1 first.
 fn to_gray(image: DynamicImage) -> GrayImage {
     let (width, height) = (image.width(), image.height());
-    let quantise = |v: f32| (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
+    let quantise = super::quantise_unit;
     // Transparent areas show the paper behind them: white.
     let over_white = |v: f32, alpha: f32| v * alpha + (1.0 - alpha);
     fn convert<P: Copy>(pixels: &[P], channels: usize, f: impl Fn(&[P]) -> u8) -> Vec<u8> {
@@ -361,9 +361,9 @@ fn to_gray(image: DynamicImage) -> GrayImage {
         DynamicImage::ImageLumaA8(b) => convert(b.as_raw(), 2, |p| {
             quantise(over_white(p[0] as f32 / U8, p[1] as f32 / U8))
         }),
-        DynamicImage::ImageRgb8(b) => convert(b.as_raw(), 3, |p| {
-            quantise(luminance(p[0] as f32, p[1] as f32, p[2] as f32) / U8)
-        }),
+        DynamicImage::ImageRgb8(b) => {
+            convert(b.as_raw(), 3, |p| super::gray_of_rgb8(p[0], p[1], p[2]))
+        }
         DynamicImage::ImageRgba8(b) => convert(b.as_raw(), 4, |p| {
             let l = luminance(p[0] as f32, p[1] as f32, p[2] as f32) / U8;
             quantise(over_white(l, p[3] as f32 / U8))

@@ -1,0 +1,28 @@
+//! Tagsmith for Python: the detector on NumPy arrays, families, rendering and sheets.
+//!
+//! The module is `tagsmith._tagsmith`; the `tagsmith` package (python/tagsmith) re-exports it with
+//! its docstrings and type stubs. Every error a user can cause becomes `ValueError`, `TypeError` or
+//! `FileNotFoundError` carrying the command line's message; a fault of ours becomes `RuntimeError`,
+//! never a panic across the boundary.
+
+mod arrays;
+mod detection;
+mod detector;
+mod errors;
+mod family;
+
+use pyo3::prelude::*;
+
+#[pymodule]
+fn _tagsmith(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add_class::<detector::Detector>()?;
+    m.add_class::<detector::Tracker>()?;
+    m.add_class::<detection::Detection>()?;
+    m.add_class::<family::Family>()?;
+    m.add_function(wrap_pyfunction!(family::families, m)?)?;
+    m.add_function(wrap_pyfunction!(family::detectable_families, m)?)?;
+    m.add_function(wrap_pyfunction!(arrays::to_gray, m)?)?;
+    m.add_function(wrap_pyfunction!(arrays::imread, m)?)?;
+    Ok(())
+}
