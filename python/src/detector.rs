@@ -99,6 +99,21 @@ impl Detector {
             .collect()
     }
 
+    /// The gray image and camera one call detects with, its arguments checked.
+    fn prepare(
+        &self,
+        image: &Bound<'_, PyAny>,
+        camera_params: Option<[f64; 4]>,
+        tag_size: Option<f64>,
+        channels: Option<&str>,
+    ) -> PyResult<(GrayImage, Option<Camera>)> {
+        let channels = channels.map(Channels::parse).transpose()?;
+        let gray = gray_image(image, channels.unwrap_or(self.channels))?;
+        let camera = self.camera_for(&gray, camera_params)?;
+        check_tag_size(tag_size)?;
+        Ok((gray, camera))
+    }
+
     /// Converts, then detects with the GIL released.
     fn run(
         &self,
@@ -108,10 +123,7 @@ impl Detector {
         tag_size: Option<f64>,
         channels: Option<&str>,
     ) -> PyResult<Vec<Detection>> {
-        let channels = channels.map(Channels::parse).transpose()?;
-        let gray = gray_image(image, channels.unwrap_or(self.channels))?;
-        let camera = self.camera_for(&gray, camera_params)?;
-        check_tag_size(tag_size)?;
+        let (gray, camera) = self.prepare(image, camera_params, tag_size, channels)?;
         let (found, timings) = py.detach(|| {
             no_panic("detecting", || {
                 self.inner.detect_with(&gray, camera.as_ref())
@@ -382,10 +394,7 @@ impl Tracker {
         channels: Option<&str>,
     ) -> PyResult<Vec<Detection>> {
         let detector = self.detector.get();
-        let channels = channels.map(Channels::parse).transpose()?;
-        let gray = gray_image(image, channels.unwrap_or(detector.channels))?;
-        let camera = detector.camera_for(&gray, camera_params)?;
-        check_tag_size(tag_size)?;
+        let (gray, camera) = detector.prepare(image, camera_params, tag_size, channels)?;
         let state = &self.state;
         let frame = py.detach(|| {
             no_panic("tracking", || {
