@@ -618,6 +618,41 @@ fn the_families_panel_shows_each_family_drawn_with_its_numbers() {
     assert_eq!(spec(&h).name, "aruco-6x6_250-copy");
 }
 
+#[test]
+fn every_builtin_family_is_on_the_first_screen_with_whether_it_detects() {
+    let s = setup();
+    let mut files = FolderFiles::new(&s.out);
+    files.user_folder = Some(s.user.clone());
+    let window = egui::vec2(1400.0, 900.0);
+    let mut h = Harness::builder()
+        .with_size(window)
+        .with_max_steps(50)
+        .build_ui_state(|ui, s: &mut Studio| s.ui(ui), Studio::new(Box::new(files)));
+    h.run();
+    let screen = egui::Rect::from_min_size(egui::Pos2::ZERO, window);
+    for name in tagsmith::builtin::names() {
+        let marker = h.get_by_label(&format!("{name} marker")).rect();
+        assert!(
+            screen.contains_rect(marker),
+            "{name}'s marker at {marker:?}"
+        );
+        assert!(marker.width() >= 80.0, "{name}'s marker is {marker:?}");
+        let label = h.get_by_label(name).rect();
+        assert!(screen.contains_rect(label), "{name}'s name at {label:?}");
+        assert!(label.height() < 28.0, "{name}'s name wraps: {label:?}");
+    }
+    let shipped = tagsmith::detect::stage2::shipped_families().count();
+    assert_eq!(
+        h.query_all_by_label("detects: shipped weights").count(),
+        shipped
+    );
+    assert_eq!(
+        h.query_all_by_label("no shipped weights: train them in Train")
+            .count(),
+        tagsmith::builtin::names().count() - shipped
+    );
+}
+
 /// Detect panel → a shipped sample photograph (the first click also loads the models).
 fn detect_sample(h: &mut Harness<'static, Studio>, sample: &str) {
     h.get_by_label("Detect").click();

@@ -5,7 +5,7 @@
 //! makes the kernel interrupt every core to flush its address translations, and each new block is
 //! zeroed page by page on first touch. Profiled on a 1280×960 detection, that was a fifth of the
 //! time (`native_write_msr`, `smp_call_function_many_cond`, page faults), and stage 1 ran
-//! 1.3–1.6× faster once the blocks stayed in the heap (BENCHMARKS.md "Speed").
+//! 1.3–1.6× faster once the blocks stayed in the heap (docs/BENCHMARKS-HISTORY.md, "Earlier the same day: the first shipped stage 1").
 
 /// Keeps blocks up to 256 MB in the heap and lets it hold up to 512 MB of freed memory before
 /// returning any to the system: the freed buffers of one layer serve the next. The price is a

@@ -40,8 +40,8 @@ pub struct DetectorSettings {
     /// corners joined where the image shows a quad's sides, quads traced around dark blobs where
     /// the network sees a marker (its mask or its corners), and the network's closer look (twice
     /// the size) and stretched look (four times across a corner's direction) around its strong
-    /// corners that no read accounts for (on the real photographs of BENCHMARKS.md, "Real time
-    /// on real photographs", a third to a half of the time).
+    /// corners that no read accounts for (on the real photographs of BENCHMARKS.md, "Real
+    /// photographs", a third to a half of the time).
     #[cfg_attr(not(target_arch = "wasm32"), arg(long))]
     pub no_outline: bool,
     /// Read only through stage 2's network: no cell reads straight off the image for the ROIs

@@ -1,16 +1,37 @@
 //! NumPy images in, the detector's gray image out.
 //!
-//! The detector owns its pixels (`GrayImage`), so an array is copied once, row by row when its
-//! rows are contiguous and element by element otherwise (a slice, a transposed or a read-only
-//! array reads the same). The copy costs well under a millisecond on a 640×480 frame against the
-//! detector's tens of milliseconds (BENCHMARKS.md, "Python").
+//! A C-contiguous gray array is read where it lies: the detector's image borrows its bytes and
+//! keeps the array alive. Any other layout (a slice with a step, a transposed or a Fortran-order
+//! array) is copied once into a row-major image, and a colour array is converted to gray (the
+//! file reader's luminance), which is a copy by nature. The caller must not write to an array
+//! while a detector reads it, as with OpenCV's functions.
 
 use crate::errors::bad_input;
 use numpy::prelude::*;
 use numpy::{PyArrayDyn, PyUntypedArray};
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
+use std::sync::Arc;
 use tagsmith::image::{gray_of_rgb8, luminance, GrayImage};
+
+/// A NumPy array's bytes, lent to the detector: the array is held, so its memory stays.
+struct LentArray {
+    _owner: Py<PyAny>,
+    start: *const u8,
+    len: usize,
+}
+
+// SAFETY: the bytes are only read, and the array they belong to outlives this value (it is
+// held); NumPy does not move an array's data while another reference to it exists.
+unsafe impl Send for LentArray {}
+unsafe impl Sync for LentArray {}
+
+impl AsRef<[u8]> for LentArray {
+    fn as_ref(&self) -> &[u8] {
+        // SAFETY: `start` and `len` describe the held array's contiguous data.
+        unsafe { std::slice::from_raw_parts(self.start, self.len) }
+    }
+}
 
 /// The channel order of a colour image.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -74,8 +95,16 @@ pub fn gray_image(image: &Bound<'_, PyAny>, channels: Channels) -> PyResult<Gray
             "image: {width}×{height} is larger than the detector's limit of {limit} pixels"
         )));
     }
+    let (width32, height32) = (width as u32, height as u32);
+    if let (1, Some(contiguous)) = (depth, view.as_slice()) {
+        let lent = LentArray {
+            _owner: image.clone().unbind(),
+            start: contiguous.as_ptr(),
+            len: contiguous.len(),
+        };
+        return Ok(GrayImage::lent(width32, height32, Arc::new(lent)));
+    }
     let pixels: Vec<u8> = match (depth, view.as_slice()) {
-        (1, Some(contiguous)) => contiguous.to_vec(),
         (1, None) => view.iter().copied().collect(),
         _ => {
             let standard = view.as_standard_layout();
@@ -97,11 +126,7 @@ pub fn gray_image(image: &Bound<'_, PyAny>, channels: Channels) -> PyResult<Gray
                 .collect()
         }
     };
-    Ok(GrayImage {
-        width: width as u32,
-        height: height as u32,
-        pixels,
-    })
+    Ok(GrayImage::from_vec(width32, height32, pixels))
 }
 
 /// As the file reader composites RGBA: transparent areas show the paper behind them.
@@ -122,7 +147,7 @@ pub fn to_gray<'py>(
     let gray = gray_image(image, Channels::parse(channels)?)?;
     Ok(numpy::ndarray::Array2::from_shape_vec(
         (gray.height as usize, gray.width as usize),
-        gray.pixels,
+        gray.pixels.into_vec(),
     )
     .expect("the pixels fill the shape")
     .into_pyarray(py))
@@ -140,7 +165,7 @@ pub fn imread<'py>(
         tagsmith::image::read(&path, &tagsmith::image::Limits::default()).map_err(bad_input)?;
     Ok(numpy::ndarray::Array2::from_shape_vec(
         (gray.height as usize, gray.width as usize),
-        gray.pixels,
+        gray.pixels.into_vec(),
     )
     .expect("the pixels fill the shape")
     .into_pyarray(py))

@@ -7,7 +7,9 @@ Conventions:
 
 * Images are ``numpy.ndarray`` of ``uint8``: H×W (gray), H×W×1, H×W×3 or H×W×4 (colour, in the
   ``channels`` order, "RGB" or "BGR"; alpha is composited over white paper). Contiguous,
-  strided, Fortran-ordered and read-only arrays are all accepted (the pixels are copied once).
+  strided, Fortran-ordered and read-only arrays are all accepted. A C-contiguous gray array is
+  read in place, without a copy (do not write to it while a detector reads it); other layouts
+  are copied once, and colour is converted to gray.
 * Pixel coordinates are (x, y) with the origin at the top-left pixel's corner, x right, y down.
 * Corners follow OpenCV's order: top-left, top-right, bottom-right, bottom-left of the upright
   marker (clockwise in the image).

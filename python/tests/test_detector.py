@@ -1,6 +1,7 @@
 """The detector on NumPy arrays: the command line's detections, poses, array layouts, bad input."""
 
 import json
+import sys
 import threading
 import time
 
@@ -91,6 +92,20 @@ def test_strided_fortran_and_read_only_arrays_read_as_their_copies():
     read_only.flags.writeable = False
     for image in (strided, fortran, read_only):
         assert [(d.tag_id, d.corners.tolist()) for d in detector.detect(image)] == want
+
+
+def test_a_contiguous_array_is_read_in_place_and_let_go():
+    frame = scene(tag_id=5)
+    detector = tagsmith.Detector(families=["apriltag-36h11"])
+    before = sys.getrefcount(frame)
+    found = detector.detect(frame)
+    detector.detect_arrays(frame)
+    detector.detect_batch([frame, frame])
+    # The detector held the array while it read it in place, and holds it no longer: a leak
+    # would keep every frame of a video alive.
+    assert sys.getrefcount(frame) == before
+    assert np.array_equal(frame, scene(tag_id=5)), "the caller's pixels are left as they were"
+    assert [d.tag_id for d in found] == [5]
 
 
 @pytest.mark.parametrize(

@@ -2,15 +2,21 @@
 //! and the way into the designer (duplicate a built-in, edit one of the user's).
 
 use super::files::{user_families, FileAccess, OpenedFile};
+use super::train::attached_model;
 use super::{preview, Studio};
 use egui::{ColorImage, TextureHandle, TextureOptions};
 use std::path::PathBuf;
+use tagsmith::detect::stage2::shipped_families;
 use tagsmith::family::{Family, FamilySpec};
 
 /// Pixels across a thumbnail: twice its size on screen, so it stays sharp on high-DPI displays.
-const THUMBNAIL_PX: u32 = 112;
-/// Points across a thumbnail on screen.
-const THUMBNAIL_SIZE: f32 = 56.0;
+const THUMBNAIL_PX: u32 = 176;
+/// Points across a thumbnail on screen: a 10×10-cell marker at 8 points a cell.
+const THUMBNAIL_SIZE: f32 = 88.0;
+/// The narrowest a gallery card gets (points): the marker and a line of numbers beside it.
+const CARD_MIN_WIDTH: f32 = 320.0;
+/// Points between cards.
+const CARD_GAP: f32 = 8.0;
 
 #[derive(Debug, Clone, PartialEq)]
 pub enum Origin {
@@ -82,6 +88,27 @@ impl Entry {
             "{} keypoints · {} codes · minimum distance {distance}",
             self.keypoints, self.codes
         )
+    }
+
+    /// Whether the detector reads this family, and how the gallery says it: with the weights
+    /// shipped for a built-in, or with a model the Train panel attached beside the user's file.
+    pub fn detection(&self) -> (bool, &'static str) {
+        let file = match &self.origin {
+            Origin::Builtin => {
+                return if shipped_families().any(|f| f == self.spec.name) {
+                    (true, "detects: shipped weights")
+                } else {
+                    (false, "no shipped weights: train them in Train")
+                };
+            }
+            Origin::UserFolder(path) => Some(path),
+            Origin::Opened { path, .. } => path.as_ref(),
+        };
+        if file.is_some_and(|f| attached_model(f).is_file()) {
+            (true, "detects: your trained model")
+        } else {
+            (false, "no weights yet: train them in Train")
+        }
     }
 
     fn texture(&mut self, ctx: &egui::Context) -> Option<&TextureHandle> {
@@ -248,17 +275,50 @@ pub fn show(studio: &mut Studio, ui: &mut egui::Ui) {
     }
 }
 
-/// One row per family: its marker, name and title, summary and origin. Clicking the marker or the
-/// name selects it.
+/// The families as cards, as many across as the panel fits (each at least `CARD_MIN_WIDTH`,
+/// widened to fill the row): at 1400×900 every built-in is on screen without scrolling. Clicking
+/// a card's marker or name selects it.
 fn gallery(studio: &mut Studio, ui: &mut egui::Ui) {
     let library = &mut studio.library;
-    egui::Grid::new("families")
-        .num_columns(4)
-        .striped(true)
-        .spacing([12.0, 6.0])
-        .show(ui, |ui| {
-            for (i, e) in library.entries.iter_mut().enumerate() {
+    let width = ui.available_width();
+    let columns = (((width + CARD_GAP) / (CARD_MIN_WIDTH + CARD_GAP)).floor() as usize).max(1);
+    let card_width = (width - CARD_GAP * (columns as f32 - 1.0)) / columns as f32;
+    let count = library.entries.len();
+    for first in (0..count).step_by(columns) {
+        ui.horizontal_top(|ui| {
+            ui.spacing_mut().item_spacing.x = CARD_GAP;
+            for i in first..(first + columns).min(count) {
                 let selected = library.selected == Some(i);
+                if card(ui, &mut library.entries[i], selected, card_width) {
+                    library.selected = Some(i);
+                }
+            }
+        });
+        ui.add_space(CARD_GAP);
+    }
+}
+
+/// One family: its marker beside its name, title, numbers, whether it detects and its print
+/// size. Returns whether it was clicked.
+fn card(ui: &mut egui::Ui, e: &mut Entry, selected: bool, width: f32) -> bool {
+    let visuals = ui.visuals();
+    let (stroke, fill) = if selected {
+        (
+            visuals.selection.stroke,
+            visuals.selection.bg_fill.gamma_multiply(0.3),
+        )
+    } else {
+        (
+            visuals.widgets.noninteractive.bg_stroke,
+            visuals.faint_bg_color,
+        )
+    };
+    let frame = egui::Frame::group(ui.style()).stroke(stroke).fill(fill);
+    let inner = width - frame.total_margin().sum().x;
+    frame
+        .show(ui, |ui| {
+            ui.set_width(inner);
+            ui.horizontal_top(|ui| {
                 let mut clicked = match e.texture(ui.ctx()) {
                     Some(tex) => {
                         let [w, h] = tex.size().map(|n| n as f32);
@@ -279,19 +339,30 @@ fn gallery(studio: &mut Studio, ui: &mut egui::Ui) {
                     }
                 };
                 ui.vertical(|ui| {
-                    clicked |= ui.selectable_label(selected, &e.spec.name).clicked();
-                    ui.weak(&e.spec.title);
+                    // Names and titles stay on one line; a long one is cut with "…" and shown
+                    // whole on hover.
+                    ui.style_mut().wrap_mode = Some(egui::TextWrapMode::Truncate);
+                    let name = egui::RichText::new(&e.spec.name).strong();
+                    clicked |= ui.selectable_label(selected, name).clicked();
+                    ui.add(egui::Label::new(egui::RichText::new(&e.spec.title).weak()));
+                    ui.style_mut().wrap_mode = Some(egui::TextWrapMode::Wrap);
+                    ui.label(e.summary());
+                    let (detects, how) = e.detection();
+                    let text = egui::RichText::new(how);
+                    ui.label(if detects { text } else { text.weak() });
+                    ui.weak(format!(
+                        "{} mm printed · {}",
+                        e.spec.print.marker_side_mm,
+                        match &e.origin {
+                            Origin::Builtin => "built-in".to_string(),
+                            Origin::UserFolder(_) => "your folder".to_string(),
+                            Origin::Opened { name, .. } => format!("opened: {name}"),
+                        }
+                    ));
                 });
-                if clicked {
-                    library.selected = Some(i);
-                }
-                ui.label(e.summary());
-                ui.weak(match &e.origin {
-                    Origin::Builtin => "built-in".to_string(),
-                    Origin::UserFolder(_) => "your folder".to_string(),
-                    Origin::Opened { name, .. } => format!("opened: {name}"),
-                });
-                ui.end_row();
-            }
-        });
+                clicked
+            })
+            .inner
+        })
+        .inner
 }

@@ -5,7 +5,7 @@
 //! convolution into a zeroed buffer, bias, ReLU — and its depthwise kernel was 40 % of the
 //! stage-1 network's samples on the 640×480 speed set; here each layer is one pass that keeps
 //! its rows or pixel tiles in the L1 cache and adds the bias and ReLU on the way out
-//! (BENCHMARKS.md: "the networks by plain loops"). Training keeps burn's layers; a
+//! (docs/BENCHMARKS-HISTORY.md: "the networks by plain loops"). Training keeps burn's layers; a
 //! [`PlainNet`] is built from them once their batch norms are folded, and computes the same
 //! function up to the order of the float additions.
 

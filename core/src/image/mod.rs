@@ -4,9 +4,11 @@
 //!
 //! Conventions: 8-bit gray, row-major; pixel centres at integer coordinates (as OpenCV's warps).
 
+mod pixels;
 mod read;
 mod write;
 
+pub use pixels::{Lent, Pixels};
 pub use read::{decode, read, ImageError, ImageErrorKind, Limits};
 pub use write::encode_png;
 
@@ -19,15 +21,34 @@ pub const MAX_PIXELS_CEILING: u64 = 256_000_000;
 pub struct GrayImage {
     pub width: u32,
     pub height: u32,
-    pub pixels: Vec<u8>,
+    pub pixels: Pixels,
 }
 
 impl GrayImage {
     pub fn new(width: u32, height: u32, fill: u8) -> Self {
+        Self::from_vec(width, height, vec![fill; width as usize * height as usize])
+    }
+
+    /// `pixels` row-major, `width` × `height` of them.
+    pub fn from_vec(width: u32, height: u32, pixels: Vec<u8>) -> Self {
+        debug_assert_eq!(pixels.len(), width as usize * height as usize);
         Self {
             width,
             height,
-            pixels: vec![fill; width as usize * height as usize],
+            pixels: Pixels::Owned(pixels),
+        }
+    }
+
+    /// An image over bytes a caller owns (`width` × `height`, row-major), read in place.
+    ///
+    /// # Panics
+    /// If the bytes are not exactly `width` × `height`.
+    pub fn lent(width: u32, height: u32, pixels: Lent) -> Self {
+        assert_eq!((*pixels).as_ref().len(), width as usize * height as usize);
+        Self {
+            width,
+            height,
+            pixels: Pixels::Lent(pixels),
         }
     }
 
@@ -42,11 +63,7 @@ impl GrayImage {
             let start = row as usize * self.width as usize + x as usize;
             pixels.extend_from_slice(&self.pixels[start..start + width as usize]);
         }
-        Self {
-            width,
-            height,
-            pixels,
-        }
+        Self::from_vec(width, height, pixels)
     }
 
     /// Bilinear sample (see [`bilinear`]), in gray levels 0–255.

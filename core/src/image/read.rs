@@ -393,11 +393,7 @@ fn to_gray(image: DynamicImage) -> GrayImage {
             quantise(over_white(l, p[3] as f32 / U8))
         }),
     };
-    GrayImage {
-        width,
-        height,
-        pixels,
-    }
+    GrayImage::from_vec(width, height, pixels)
 }
 
 #[cfg(test)]
@@ -429,7 +425,7 @@ mod tests {
     const GRAY: [u8; 4] = [0, 85, 170, 255];
 
     fn gray_of(bytes: &[u8]) -> Vec<u8> {
-        decode(bytes, &Limits::default()).unwrap().pixels
+        decode(bytes, &Limits::default()).unwrap().pixels.into_vec()
     }
 
     #[test]

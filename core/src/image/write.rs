@@ -25,7 +25,7 @@ mod tests {
         let image = GrayImage {
             width: 3,
             height: 2,
-            pixels: vec![0, 1, 2, 253, 254, 255],
+            pixels: vec![0, 1, 2, 253, 254, 255].into(),
         };
         let back = decode(&encode_png(&image).unwrap(), &Limits::default()).unwrap();
         assert_eq!(back, image);

@@ -136,7 +136,7 @@ pub struct SourceParams {
 }
 
 /// The table the detector runs, in order. Budgets bound what clutter can cost; the figures that
-/// chose them are in BENCHMARKS.md ("Proposal sources").
+/// chose them are in BENCHMARKS.md ("Real photographs": each proposal source).
 pub const DEFAULT_SOURCES: [SourceParams; SOURCES] = [
     SourceParams {
         source: Source::Stage1,

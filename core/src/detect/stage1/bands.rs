@@ -334,7 +334,7 @@ mod tests {
         let levels = pyramid(&image, 3);
         // Level 1 (103 rows of level 0) on one core, level 2 (25) on the other: a cut at row 168.
         assert!(cut_for(417, 103, 25, receptive_radius()).is_some());
-        let refs: Vec<&GrayImage> = levels.iter().map(|(l, _)| l).collect();
+        let refs: Vec<&GrayImage> = levels.iter().map(|(l, _)| l.as_ref()).collect();
         let contrasts = vec![Some(Contrast::of(&image)), None, None];
         let whole: Vec<Maps> = (0..refs.len())
             .map(|i| maps_of_one(&net, refs[i], contrasts[i]))

@@ -227,11 +227,7 @@ mod tests {
                 pixels.push((sum / 16.0).round() as u8);
             }
         }
-        GrayImage {
-            width: w,
-            height: h,
-            pixels,
-        }
+        GrayImage::from_vec(w, h, pixels)
     }
 
     const SLIVER: [[f64; 2]; 4] = [[50.3, 20.6], [61.8, 24.1], [58.4, 80.2], [47.1, 76.9]];

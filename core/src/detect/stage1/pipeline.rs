@@ -20,6 +20,7 @@ use crate::detect::plain_net::PlainNet;
 use crate::geometry::{distance, inside_polygon, polygon_area};
 use crate::image::GrayImage;
 use burn::tensor::Device;
+use std::borrow::Cow;
 use std::path::Path;
 
 /// Stage-1 weights shipped in `assets/models/`: one model for every square family.
@@ -546,13 +547,13 @@ fn grown(quads: &[[[f64; 2]; 4]]) -> Vec<[[f64; 2]; 4]> {
 pub fn search_with(net: &PlainNet, image: &GrayImage, options: &ProposeOptions) -> Search {
     let mut levels = pyramid(image, options.levels);
     if options.upsample {
-        levels.insert(0, (double(image), 0.5));
+        levels.insert(0, (Cow::Owned(double(image)), 0.5));
     }
     // The image's own level's normalisation, which the closer looks reuse for their crops.
     let contrast = Contrast::of(image);
     let mut weak_corners: Vec<Corner> = Vec::new();
     let mut all_maps = Vec::new();
-    let level_images: Vec<&GrayImage> = levels.iter().map(|(level, _)| level).collect();
+    let level_images: Vec<&GrayImage> = levels.iter().map(|(level, _)| level.as_ref()).collect();
     let contrasts: Vec<Option<Contrast>> = (levels.iter())
         .map(|(_, scale)| (*scale == 1.0).then_some(contrast))
         .collect();
@@ -600,9 +601,10 @@ pub fn propose_with(net: &PlainNet, image: &GrayImage, options: &ProposeOptions)
     search_with(net, image, options).proposals(&[], &[])
 }
 
-/// The image and its halvings, each with its scale (image pixels per level pixel).
-pub fn pyramid(image: &GrayImage, levels: usize) -> Vec<(GrayImage, f64)> {
-    let mut out = vec![(image.clone(), 1.0)];
+/// The image and its halvings, each with its scale (image pixels per level pixel). The image
+/// itself is borrowed: a caller's pixels (a Python array's) are not copied.
+pub fn pyramid(image: &GrayImage, levels: usize) -> Vec<(Cow<'_, GrayImage>, f64)> {
+    let mut out = vec![(Cow::Borrowed(image), 1.0)];
     while out.len() < levels.max(1) {
         let (last, scale) = out.last().expect("level 0 is there");
         if last.width.min(last.height) / 2 < MIN_LEVEL_SIDE {
@@ -610,7 +612,7 @@ pub fn pyramid(image: &GrayImage, levels: usize) -> Vec<(GrayImage, f64)> {
         }
         let half = halve(last);
         let scale = scale * 2.0;
-        out.push((half, scale));
+        out.push((Cow::Owned(half), scale));
     }
     out
 }

@@ -23,7 +23,6 @@ pub use crate::detect::blocks::Contrast;
 #[cfg(feature = "detect")]
 pub use pipeline::{ReadOptions, Stage2, Stage2Result};
 
-use crate::image::GrayImage;
 
 /// Stage-2 weights shipped in `assets/models/` for built-in families, by family name.
 const SHIPPED: &[(&str, &[u8])] = &[
@@ -56,7 +55,8 @@ pub fn shipped_model(family: &str) -> Option<&'static [u8]> {
 
 /// The network's input: each patch standardised to zero mean and unit contrast, so the marker's
 /// gray levels and lighting (black is not 0, white not 255 in the training data) do not matter.
-pub fn normalise_patch(patch: &GrayImage) -> Vec<f32> {
+#[cfg(feature = "detect")]
+pub fn normalise_patch(patch: &crate::image::GrayImage) -> Vec<f32> {
     Contrast::of(patch).normalise(patch)
 }
 

@@ -4,7 +4,7 @@ use super::*;
 use crate::detect::stage1::Stage1;
 
 /// Stage 1's ROI recall on scenes of designs it never saw in training against the same figure
-/// on the training families' validation scenes (BENCHMARKS.md, "Stage 1 on unseen designs"):
+/// on the training families' validation scenes (BENCHMARKS.md, "Training", stage 1):
 /// `cargo test --release -p tagsmith --features learn --lib never_saw -- --ignored --nocapture`.
 #[test]
 #[ignore = "a benchmark: 400 scenes through the shipped stage 1 (about a minute)"]

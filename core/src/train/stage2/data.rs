@@ -18,13 +18,13 @@ use rand_chacha::ChaCha8Rng;
 /// The share of training patches cut from camera views when a run does not say otherwise.
 /// Patch mode draws the marker at patch resolution under mild perspective; a steep view of a
 /// small marker reaches stage 2 as a patch stretched ~10× along one axis, which patch mode never
-/// shows it (BENCHMARKS.md, "Now: stage 2 trained on steep camera views, and stricter reads").
+/// shows it (docs/BENCHMARKS-HISTORY.md, "Before: stage 2 trained on steep camera views, and stricter reads").
 pub const DEFAULT_CAMERA_SHARE: f64 = 0.3;
 
 /// How far away a camera cut's marker stands. Far steep slivers (35–60 px long, 9–16 px wide)
 /// read from true ROIs with 0 corrections but missed or needed 3–5 once their corners moved by
 /// 2–4 % of the side (`detect-set --roi-noise`), and the first camera cuts (10–60 cm) drew few of
-/// them (BENCHMARKS.md, "Now: stage 2 fine-tuned on far steep cuts …").
+/// them (docs/BENCHMARKS-HISTORY.md, "Before: stage 2 fine-tuned on far steep cuts …").
 const CUT_DISTANCE_M: [f64; 2] = [0.1, 0.8];
 
 /// The scale of a camera cut's ROI error (pixels; the error is about normal with a standard
