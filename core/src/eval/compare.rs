@@ -39,6 +39,9 @@ pub struct PairedErrors {
     pub markers: usize,
     pub position_mm: (Stats, Stats),
     pub rotation_deg: (Stats, Stats),
+    /// Flipped poses among them (see `score::FLIP_ROTATION_DEG`), A's and B's.
+    #[serde(default)]
+    pub flips: (usize, usize),
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -166,10 +169,12 @@ fn paired_errors(errors: &[[MarkerRead; 2]]) -> Option<PairedErrors> {
                 .collect(),
         )
     };
+    let flips = |side: usize| errors.iter().filter(|e| e[side].flipped).count();
     Some(PairedErrors {
         markers: errors.len(),
         position_mm: (of(0, true)?, of(1, true)?),
         rotation_deg: (of(0, false)?, of(1, false)?),
+        flips: (flips(0), flips(1)),
     })
 }
 
@@ -269,20 +274,22 @@ impl Comparison {
               differences these markers cannot tell from the one measured; one marker is \
               100 / markers points.\n";
         if self.rows.iter().any(|r| r.both_errors.is_some()) {
-            s += "\nPose errors on the markers both read, mean / median (A | B):\n\n";
-            s += "| subset | markers | position mm A | position mm B | rotation ° A | rotation ° B |\n";
-            s += "|---|---|---|---|---|---|\n";
-            let fmt = |st: &Stats| format!("{:.3} / {:.3}", st.mean, st.median);
+            s += "\nPose errors on the markers both read, mean / median / p95 / p99, and flipped \
+                  poses (A | B):\n\n";
+            s += "| subset | markers | position mm A | position mm B | rotation ° A | rotation ° B | flips A | flips B |\n";
+            s += "|---|---|---|---|---|---|---|---|\n";
             for r in &self.rows {
                 if let Some(e) = &r.both_errors {
                     s += &format!(
-                        "| {} | {} | {} | {} | {} | {} |\n",
+                        "| {} | {} | {} | {} | {} | {} | {} | {} |\n",
                         r.subset,
                         e.markers,
-                        fmt(&e.position_mm.0),
-                        fmt(&e.position_mm.1),
-                        fmt(&e.rotation_deg.0),
-                        fmt(&e.rotation_deg.1)
+                        e.position_mm.0.columns(),
+                        e.position_mm.1.columns(),
+                        e.rotation_deg.0.columns(),
+                        e.rotation_deg.1.columns(),
+                        e.flips.0,
+                        e.flips.1
                     );
                 }
             }

@@ -15,10 +15,21 @@ use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
 use std::path::Path;
 
+/// An error's distribution: its centre and its tail (a user who steers by the pose cares about
+/// the worst reads in a hundred, not the typical one).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Stats {
     pub mean: f64,
     pub median: f64,
+    /// 95th and 99th percentiles (nearest rank). Reports written before they existed read as NaN.
+    #[serde(default = "not_reported")]
+    pub p95: f64,
+    #[serde(default = "not_reported")]
+    pub p99: f64,
+}
+
+fn not_reported() -> f64 {
+    f64::NAN
 }
 
 pub(super) fn stats(mut v: Vec<f64>) -> Option<Stats> {
@@ -31,11 +42,31 @@ pub(super) fn stats(mut v: Vec<f64>) -> Option<Stats> {
     } else {
         (v[v.len() / 2 - 1] + v[v.len() / 2]) / 2.0
     };
+    let rank = |p: f64| v[((p * v.len() as f64).ceil() as usize).clamp(1, v.len()) - 1];
     Some(Stats {
         mean: v.iter().sum::<f64>() / v.len() as f64,
         median,
+        p95: rank(0.95),
+        p99: rank(0.99),
     })
 }
+
+impl Stats {
+    /// "mean / median / p95 / p99", as the reports' tables print it.
+    pub fn columns(&self) -> String {
+        format!(
+            "{:.3} / {:.3} / {:.3} / {:.3}",
+            self.mean, self.median, self.p95, self.p99
+        )
+    }
+}
+
+/// A pose is flipped when its rotation is this far off (degrees) although the marker's corners
+/// were found where they are: the planar pose ambiguity chose the wrong solution, which a robot
+/// steering by the pose feels as a jump, not as noise.
+pub const FLIP_ROTATION_DEG: f64 = 10.0;
+/// Corners count as found where they are within this share of the true marker's mean side.
+pub const FLIP_CORNER_SHARE: f64 = 0.1;
 
 /// Scores of one subset of images.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -49,6 +80,12 @@ pub struct Row {
     pub precision: f64,
     pub position_error_mm: Option<Stats>,
     pub rotation_error_deg: Option<Stats>,
+    /// Correct reads with a pose whose rotation is flipped (see [`FLIP_ROTATION_DEG`]), and
+    /// their share of the correct reads with a pose.
+    #[serde(default)]
+    pub flips: usize,
+    #[serde(default)]
+    pub flip_rate: f64,
     pub time_ms: f64,
 }
 
@@ -99,6 +136,8 @@ pub(super) struct MarkerRead {
     /// Position (m) and rotation (deg) error of its pose; NaN without one.
     pub(super) position_m: f64,
     pub(super) rotation_deg: f64,
+    /// The rotation is flipped though the corners are right.
+    pub(super) flipped: bool,
     pose: Option<Pose>,
 }
 
@@ -149,9 +188,17 @@ fn judge(
             }
             _ => (f64::NAN, f64::NAN),
         };
+        let truth_corners = &t.roi[..4];
+        let side = (0..4)
+            .map(|k| crate::geometry::distance(truth_corners[k], truth_corners[(k + 1) % 4]))
+            .sum::<f64>()
+            / 4.0;
+        let corners_right = (d.corners.iter().zip(truth_corners))
+            .all(|(&p, &q)| crate::geometry::distance(p, q) <= FLIP_CORNER_SHARE * side);
         read[i] = Some(MarkerRead {
             position_m,
             rotation_deg,
+            flipped: corners_right && rotation_deg > FLIP_ROTATION_DEG,
             pose: detected,
         });
     }
@@ -176,6 +223,10 @@ fn row(subset: &str, outcomes: &[&Outcome]) -> Row {
             .filter(|v| v.is_finite())
             .collect()
     };
+    let flips = (outcomes.iter())
+        .flat_map(|o| o.read.iter().flatten())
+        .filter(|r| r.flipped)
+        .count();
     Row {
         subset: subset.to_string(),
         images: outcomes.len(),
@@ -194,6 +245,8 @@ fn row(subset: &str, outcomes: &[&Outcome]) -> Row {
         },
         position_error_mm: stats(finite(|r| r.position_m * 1000.0)),
         rotation_error_deg: stats(finite(|r| r.rotation_deg)),
+        flips,
+        flip_rate: flips as f64 / finite(|r| r.rotation_deg).len().max(1) as f64,
         time_ms: outcomes.iter().map(|o| o.time_ms).sum::<f64>() / outcomes.len().max(1) as f64,
     }
 }
@@ -481,19 +534,15 @@ fn jitter(items: &[(Group, Outcome)]) -> Option<Jitter> {
 impl Report {
     pub fn markdown(&self) -> String {
         let mut s = format!("# {} on {}\n\n", self.detector, self.family);
-        s += "| subset | images | markers | recall | precision | position error mm (mean / median) | rotation error ° (mean / median) | time/image ms |\n";
-        s += "|---|---|---|---|---|---|---|---|\n";
-        let fmt = |st: &Option<Stats>| {
-            st.map_or("–".to_string(), |st| {
-                format!("{:.3} / {:.3}", st.mean, st.median)
-            })
-        };
+        s += "| subset | images | markers | recall | precision | position error mm (mean / median / p95 / p99) | rotation error ° (mean / median / p95 / p99) | flipped poses | time/image ms |\n";
+        s += "|---|---|---|---|---|---|---|---|---|\n";
+        let fmt = |st: &Option<Stats>| st.map_or("–".to_string(), |st| st.columns());
         for r in &self.rows {
             if r.images == 0 {
                 continue;
             }
             s += &format!(
-                "| {} | {} | {} | {:.1} % | {:.1} % | {} | {} | {:.1} |\n",
+                "| {} | {} | {} | {:.1} % | {:.1} % | {} | {} | {} ({:.2} %) | {:.1} |\n",
                 r.subset,
                 r.images,
                 r.markers,
@@ -501,9 +550,16 @@ impl Report {
                 100.0 * r.precision,
                 fmt(&r.position_error_mm),
                 fmt(&r.rotation_error_deg),
+                r.flips,
+                100.0 * r.flip_rate,
                 r.time_ms
             );
         }
+        s += &format!(
+            "\nA flipped pose: rotation off by more than {FLIP_ROTATION_DEG}° with every corner \
+             within {:.0} % of the marker's side of where it is.\n",
+            100.0 * FLIP_CORNER_SHARE
+        );
         if let Some(j) = &self.jitter {
             s += &format!(
                 "\nJitter over {} poses: position STD {:.4} mm, rotation STD {:.4}°.\n",

@@ -23,7 +23,6 @@ pub use crate::detect::blocks::Contrast;
 #[cfg(feature = "detect")]
 pub use pipeline::{ReadOptions, Stage2, Stage2Result};
 
-
 /// Stage-2 weights shipped in `assets/models/` for built-in families, by family name.
 const SHIPPED: &[(&str, &[u8])] = &[
     (

@@ -68,6 +68,8 @@ fn all_rows(r: &Report) -> Row {
         precision: correct as f64 / dets.max(1) as f64,
         position_error_mm: None,
         rotation_error_deg: None,
+        flips: 0,
+        flip_rate: 0.0,
         time_ms: 0.0,
     }
 }
@@ -243,4 +245,61 @@ fn a_missing_or_broken_set_names_its_file_once() {
     let e = load(dir.path()).unwrap_err();
     assert!(matches!(&e, EvalError::Json { .. }), "{e}");
     assert_eq!(e.to_string().matches("set.json").count(), 1, "{e}");
+}
+
+/// `pose` turned by `deg` about the marker's x axis: the other solution of a planar pose looks
+/// like this, a tilt the wrong way.
+fn tilted(pose: &crate::geometry::PoseJson, deg: f64) -> crate::geometry::PoseJson {
+    let r = Matrix3::from_fn(|i, j| pose.rotation[i][j])
+        * Rotation3::from_axis_angle(&Vector3::x_axis(), deg.to_radians()).matrix();
+    crate::geometry::PoseJson {
+        rotation: std::array::from_fn(|i| std::array::from_fn(|j| r[(i, j)])),
+        translation_m: pose.translation_m,
+    }
+}
+
+#[test]
+fn a_planted_flipped_pose_shows_in_the_tail_and_the_flip_rate_not_the_median() {
+    let dir = tempfile::tempdir().unwrap();
+    let set = small_set(dir.path());
+    let f = family();
+    let file = detections(&set, |i, img| {
+        let mut found = oracle(img, true);
+        let d = &mut found[0];
+        match i {
+            // Right corners, a pose tilted the wrong way: a flip.
+            0 => d.pose = Some(tilted(d.pose.as_ref().unwrap(), 30.0)),
+            // The same tilt with a corner a third of the side off: a bad read, not a flip.
+            1 => {
+                d.pose = Some(tilted(d.pose.as_ref().unwrap(), 30.0));
+                let side = crate::geometry::distance(d.corners[0], d.corners[1]);
+                d.corners[2][0] += side / 3.0;
+            }
+            _ => {}
+        }
+        found
+    });
+    let report = score(&set, Some(&f), &file).unwrap();
+    let jitter = report.rows.iter().find(|r| r.subset == "jitter").unwrap();
+    assert_eq!(jitter.markers, 6);
+    assert_eq!(jitter.correct, 6);
+    assert_eq!(jitter.flips, 1);
+    assert!((jitter.flip_rate - 1.0 / 6.0).abs() < 1e-12);
+    let rotation = jitter.rotation_error_deg.unwrap();
+    assert!(rotation.median < 1e-6, "{rotation:?}");
+    assert!((rotation.p99 - 30.0).abs() < 1e-6, "{rotation:?}");
+    let others: usize = (report.rows.iter())
+        .filter(|r| r.subset != "jitter" && r.subset != "protocol, all")
+        .map(|r| r.flips)
+        .sum();
+    assert_eq!(others, 0);
+    assert!(report.markdown().contains("| 1 (16.67 %) |"));
+}
+
+#[test]
+fn percentiles_are_nearest_rank() {
+    let s = stats((1..=200).map(f64::from).collect()).unwrap();
+    assert_eq!((s.median, s.p95, s.p99), (100.5, 190.0, 198.0));
+    let one = stats(vec![7.0]).unwrap();
+    assert_eq!((one.p95, one.p99), (7.0, 7.0));
 }
