@@ -5,7 +5,7 @@ Both sides run the same detector one image at a time on the same build profile: 
 with `detect --sequential` (its per-image `time_ms`, the time around the detector's call), the
 package with `Detector.detect` on the image as a NumPy array (the time around the Python call,
 so it includes the array's checks, its one copy and the results' conversion). Each side's time of
-an image is its best of `--runs` runs; the table gives both medians and their ratio.
+an image is its best of `--runs` runs, the two sides taking turns; the table gives both medians and their ratio.
 
     python bench/python_latency.py --tagsmith target/release/tagsmith IMAGE_OR_DIR ...
 
@@ -37,35 +37,42 @@ def images_of(inputs):
     return [str(p) for p in paths]
 
 
-def cli_times(binary, families, images, runs):
-    best = {}
-    for _ in range(runs):
-        with tempfile.TemporaryDirectory() as tmp:
-            out = pathlib.Path(tmp) / "d.json"
-            flags = [f for name in families for f in ("--family", name)]
-            subprocess.run(
-                [binary, "detect", "--sequential", *flags, "--json", str(out), *images],
-                check=True,
-                stdout=subprocess.DEVNULL,
-            )
-            for entry in json.loads(out.read_text())["images"]:
-                key = entry["file"]
-                best[key] = min(best.get(key, float("inf")), entry["time_ms"])
-    return [best[p] for p in images]
+def cli_pass(binary, families, images):
+    with tempfile.TemporaryDirectory() as tmp:
+        out = pathlib.Path(tmp) / "d.json"
+        flags = [f for name in families for f in ("--family", name)]
+        subprocess.run(
+            [binary, "detect", "--sequential", *flags, "--json", str(out), *images],
+            check=True,
+            stdout=subprocess.DEVNULL,
+        )
+        times = {e["file"]: e["time_ms"] for e in json.loads(out.read_text())["images"]}
+    return [times[p] for p in images]
 
 
-def python_times(families, images, runs):
+def python_pass(detector, arrays):
+    times, found = [], []
+    for array in arrays:
+        start = time.perf_counter()
+        found.append(len(detector.detect(array)))
+        times.append((time.perf_counter() - start) * 1e3)
+    return times, found
+
+
+def best_of_alternating(binary, families, images, runs):
+    """Each image's best time on each side, the two sides run in turn so that the machine's
+    drift (a VM's speed wanders by a third within an hour) falls on both alike."""
     detector = tagsmith.Detector(families=families)
     arrays = [tagsmith.imread(p) for p in images]
     detector.detect(arrays[0])  # the thread pool and allocator warmed, as the CLI's first image
-    best = [float("inf")] * len(images)
-    found = [0] * len(images)
+    cli = [float("inf")] * len(images)
+    py = [float("inf")] * len(images)
+    found = []
     for _ in range(runs):
-        for k, array in enumerate(arrays):
-            start = time.perf_counter()
-            found[k] = len(detector.detect(array))
-            best[k] = min(best[k], (time.perf_counter() - start) * 1e3)
-    return best, found
+        cli = list(map(min, cli, cli_pass(binary, families, images)))
+        times, found = python_pass(detector, arrays)
+        py = list(map(min, py, times))
+    return cli, py, found
 
 
 def main():
@@ -73,12 +80,11 @@ def main():
     ap.add_argument("inputs", nargs="+")
     ap.add_argument("--tagsmith", required=True, help="the command line to compare with")
     ap.add_argument("--family", action="append", help="family (repeat); default: every shipped")
-    ap.add_argument("--runs", type=int, default=3)
+    ap.add_argument("--runs", type=int, default=5)
     a = ap.parse_args()
     families = a.family or tagsmith.detectable_families()
     images = images_of(a.inputs)
-    cli = cli_times(a.tagsmith, families, images, a.runs)
-    py, found = python_times(families, images, a.runs)
+    cli, py, found = best_of_alternating(a.tagsmith, families, images, a.runs)
     print(f"{len(images)} images, families {', '.join(families)}, best of {a.runs} per image\n")
     print("| image | markers | CLI `--sequential` (ms) | Python `detect` (ms) | Python / CLI |")
     print("|---|---|---|---|---|")

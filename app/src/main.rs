@@ -1,14 +1,12 @@
 //! `tagsmith`: the Tagsmith studio (no subcommand, or `studio`) and its command-line interface.
 
 #[cfg(not(target_arch = "wasm32"))]
-mod allocator;
-#[cfg(not(target_arch = "wasm32"))]
 mod cli;
 
 #[cfg(not(target_arch = "wasm32"))]
 fn main() -> std::process::ExitCode {
     use clap::Parser;
-    allocator::keep_large_buffers();
+    tagsmith::detect::memory::keep_large_buffers();
     match cli::Cli::parse().run() {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {

@@ -16,6 +16,11 @@ use pyo3::prelude::*;
 #[pymodule]
 fn _tagsmith(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    // As the command line does: without it detection is several per cent slower (BENCHMARKS.md,
+    // "Python package and scale-out"). TAGSMITH_KEEP_MALLOC=1 leaves the process's allocator alone.
+    if std::env::var_os("TAGSMITH_KEEP_MALLOC").is_none_or(|v| v != "1") {
+        tagsmith::detect::memory::keep_large_buffers();
+    }
     m.add_class::<detector::Detector>()?;
     m.add_class::<detector::Tracker>()?;
     m.add_class::<detection::Detection>()?;

@@ -10,6 +10,7 @@ mod detection;
 #[cfg(feature = "detect")]
 pub mod detector;
 #[cfg(feature = "detect")]
+pub mod memory;
 pub mod model_file;
 #[cfg(feature = "detect")]
 pub mod plain_net;

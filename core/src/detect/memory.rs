@@ -1,4 +1,5 @@
-//! How the process asks the system for memory.
+//! How the process asks the system for memory: a choice for the whole process, so each program
+//! that runs the detector (the `tagsmith` binary, the Python module) makes it once at start.
 //!
 //! The networks allocate and free buffers of megabytes for every layer of every pass. glibc serves
 //! blocks that large with fresh `mmap`s and hands them back with `munmap` on free; each return
@@ -12,8 +13,7 @@
 /// resident size that stays at the peak of the largest pass instead of shrinking between passes.
 #[cfg(all(target_os = "linux", target_env = "gnu"))]
 pub fn keep_large_buffers() {
-    // SAFETY: mallopt only changes glibc's allocation thresholds; it is called once, before any
-    // other thread exists.
+    // SAFETY: mallopt only changes glibc's allocation thresholds, under the main arena's lock.
     unsafe {
         libc::mallopt(libc::M_MMAP_THRESHOLD, 256 << 20);
         libc::mallopt(libc::M_TRIM_THRESHOLD, 512 << 20);
