@@ -4,8 +4,9 @@
 Both sides run the same detector one image at a time on the same build profile: the command line
 with `detect --sequential` (its per-image `time_ms`, the time around the detector's call), the
 package with `Detector.detect` on the image as a NumPy array (the time around the Python call,
-so it includes the array's checks, its one copy and the results' conversion). Each side's time of
-an image is its best of `--runs` runs, the two sides taking turns; the table gives both medians and their ratio.
+so it includes the array's checks, lending it to the detector and the results' conversion). Each
+side's time of an image is its best of `--runs` runs, the two sides taking turns; the table gives
+both medians and their ratio.
 
     python bench/python_latency.py --tagsmith target/release/tagsmith IMAGE_OR_DIR ...
 

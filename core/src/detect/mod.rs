@@ -9,8 +9,8 @@ pub mod cells;
 mod detection;
 #[cfg(feature = "detect")]
 pub mod detector;
-#[cfg(feature = "detect")]
 pub mod memory;
+#[cfg(feature = "detect")]
 pub mod model_file;
 #[cfg(feature = "detect")]
 pub mod plain_net;

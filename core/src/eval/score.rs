@@ -223,6 +223,7 @@ fn row(subset: &str, outcomes: &[&Outcome]) -> Row {
             .filter(|v| v.is_finite())
             .collect()
     };
+    let rotations = finite(|r| r.rotation_deg);
     let flips = (outcomes.iter())
         .flat_map(|o| o.read.iter().flatten())
         .filter(|r| r.flipped)
@@ -244,9 +245,9 @@ fn row(subset: &str, outcomes: &[&Outcome]) -> Row {
             1.0
         },
         position_error_mm: stats(finite(|r| r.position_m * 1000.0)),
-        rotation_error_deg: stats(finite(|r| r.rotation_deg)),
         flips,
-        flip_rate: flips as f64 / finite(|r| r.rotation_deg).len().max(1) as f64,
+        flip_rate: flips as f64 / rotations.len().max(1) as f64,
+        rotation_error_deg: stats(rotations),
         time_ms: outcomes.iter().map(|o| o.time_ms).sum::<f64>() / outcomes.len().max(1) as f64,
     }
 }
