@@ -17,6 +17,7 @@
 
 pub mod compare;
 mod plot;
+pub mod scenario;
 pub mod score;
 pub mod set;
 #[cfg(feature = "detect")]
@@ -59,6 +60,13 @@ pub enum EvalError {
     /// A set manifest that loads as JSON but cannot be scored: `field` is its JSON path.
     #[error("{path}: {field}: {message}")]
     BadSet {
+        path: PathBuf,
+        field: String,
+        message: String,
+    },
+    /// A scenario file that does not load or holds a value out of range: `field` is its JSON path.
+    #[error("{path}: {field}: {message}")]
+    BadScenario {
         path: PathBuf,
         field: String,
         message: String,

@@ -3,6 +3,7 @@
 //! Poses are compared in OpenCV ArUco's marker frame; a detection without a pose gets one from its
 //! four corners through the set's camera (the same PnP for every detector).
 
+use super::scenario::Condition;
 use super::set::{normalise_path, BenchmarkSet, Group};
 use super::EvalError;
 use crate::detect::{Detection, DetectionsFile};
@@ -345,7 +346,7 @@ fn check_detections(detections: &DetectionsFile) -> Result<(), EvalError> {
 pub(super) type Subset = (&'static str, fn(&Group) -> bool);
 
 /// The rows every report (and every comparison) has, in order.
-pub(super) const SUBSETS: [Subset; 6] = [
+pub(super) const SUBSETS: [Subset; 7] = [
     ("normal (≤ 50 cm, ≤ 60°)", |g| {
         matches!(g, Group::Protocol { normal: true, .. })
     }),
@@ -358,6 +359,7 @@ pub(super) const SUBSETS: [Subset; 6] = [
     ("motion-blur sweep", |g| {
         matches!(g, Group::MotionBlur { .. })
     }),
+    ("scenario", |g| matches!(g, Group::Scenario { .. })),
 ];
 
 /// Each set image's group and what the detections file found in it, in the set's order.
@@ -436,7 +438,7 @@ pub fn score(
             row(name, &selected)
         })
         .collect();
-    let curves = vec![
+    let mut curves = vec![
         curve(
             "recall and error vs distance",
             "distance (cm)",
@@ -470,6 +472,19 @@ pub fn score(
             }),
         ),
     ];
+    for condition in Condition::ALL {
+        let points = by(&items, |g| match g {
+            Group::Scenario {
+                condition: Some(c),
+                value,
+            } if *c == condition => Some(*value),
+            _ => None,
+        });
+        if !points.is_empty() {
+            let name = format!("recall and error vs {}", condition.name());
+            curves.push(curve(&name, condition.label(), points));
+        }
+    }
     Ok(Report {
         detector: detections.detector.clone(),
         family: set.family.clone(),

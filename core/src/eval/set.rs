@@ -38,6 +38,11 @@ pub enum Group {
         length: u32,
         direction_deg: u32,
     },
+    /// A scenario's scene: the swept condition and its value (none without sweeps).
+    Scenario {
+        condition: Option<super::scenario::Condition>,
+        value: f64,
+    },
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -210,13 +215,53 @@ pub fn generate(
             path: images_dir,
             source,
         })?;
-    let set = render_set(family, params, dir)?;
+    let camera =
+        Camera::from_diagonal_fov(1280, 960, 98.0).expect("the protocol's camera is valid");
+    let set = render_set(family, &plan(params), camera, params, dir)?;
     created.keep();
     Ok(set)
 }
 
-fn render_set(family: &Family, params: &SetParams, dir: &Path) -> Result<BenchmarkSet, EvalError> {
-    let plan = plan(params);
+/// Renders a scenario's scenes as a benchmark set into `dir` (as [`generate`] does the protocol):
+/// the same images, truth and camera the design comparison scores.
+pub fn generate_scenario(
+    family: &Family,
+    scenario: &super::scenario::Scenario,
+    dir: &Path,
+) -> Result<BenchmarkSet, EvalError> {
+    if let Err(e) = scenario.validate() {
+        return Err(EvalError::BadScenario {
+            path: "scenario".into(),
+            field: e.field,
+            message: e.message,
+        });
+    }
+    let images_dir = dir.join("images");
+    let created =
+        crate::io::CreatedDir::create(&images_dir).map_err(|source| EvalError::Write {
+            path: images_dir,
+            source,
+        })?;
+    let plan: Vec<_> = (scenario.scenes().into_iter())
+        .map(|s| (s.group, s.config, s.seed))
+        .collect();
+    let params = SetParams {
+        side_m: scenario.side_mm / 1000.0,
+        seed: scenario.seed,
+        ..SetParams::default()
+    };
+    let set = render_set(family, &plan, scenario.camera(), &params, dir)?;
+    created.keep();
+    Ok(set)
+}
+
+fn render_set(
+    family: &Family,
+    plan: &[(Group, SynthConfig, u64)],
+    camera: Camera,
+    params: &SetParams,
+    dir: &Path,
+) -> Result<BenchmarkSet, EvalError> {
     let images = plan
         .par_iter()
         .enumerate()
@@ -237,8 +282,6 @@ fn render_set(family: &Family, params: &SetParams, dir: &Path) -> Result<Benchma
             })
         })
         .collect::<Result<Vec<_>, EvalError>>()?;
-    let camera =
-        Camera::from_diagonal_fov(1280, 960, 98.0).expect("the protocol's camera is valid");
     let set = BenchmarkSet {
         family: family.name().to_string(),
         side_m: params.side_m,

@@ -106,7 +106,30 @@ pub struct SynthConfig {
     /// same scene with fresh noise (jitter sets).
     #[serde(default)]
     pub noise_seed: Option<u64>,
+    /// Draws each marker's pose, its ID and the scene's look (levels, light, blur, noise) from
+    /// streams of their own, so that one seed renders the same scene for every family: a design
+    /// comparison shows each design the same poses, light and noise. Off, one stream draws them
+    /// all, as the sets made before it was added were drawn.
+    #[serde(default)]
+    pub shared_scene: bool,
+    /// What the markers lie on.
+    #[serde(default)]
+    pub background: BackgroundKind,
 }
+
+/// A scene's background.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BackgroundKind {
+    /// Photo-like textures and clutter (the training distribution).
+    #[default]
+    Clutter,
+    /// One even gray: a marker on a wall or a sheet of paper.
+    Plain,
+}
+
+/// The gray level of a plain background (0–1).
+const PLAIN_BACKGROUND: f32 = 0.6;
 
 fn default_quad_side() -> [f64; 2] {
     [0.15, 0.55]
@@ -133,6 +156,8 @@ impl SynthConfig {
             quad_side: default_quad_side(),
             augment: AugmentRanges::default(),
             noise_seed: None,
+            shared_scene: false,
+            background: BackgroundKind::Clutter,
         }
     }
 }
@@ -238,7 +263,14 @@ pub fn synthesize_mixed(
     }
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let aug = &config.augment;
-    let mut canvas = background::procedural(&mut rng, config.width, config.height);
+    let mut canvas = match config.background {
+        BackgroundKind::Clutter => background::procedural(&mut rng, config.width, config.height),
+        BackgroundKind::Plain => Canvas::new(config.width, config.height, PLAIN_BACKGROUND),
+    };
+    // With a shared scene the IDs and the look have streams of their own: their draws depend on
+    // the family (codebook size, marker outline) and would shift every draw after them.
+    let stream = |k: u64| ChaCha8Rng::seed_from_u64(image_seed(seed ^ 0x5CE4E, k));
+    let mut ids = config.shared_scene.then(|| stream(1));
     let camera = Camera::from_diagonal_fov(config.width, config.height, config.fov_deg)?;
 
     let count = match config.mode {
@@ -254,7 +286,15 @@ pub fn synthesize_mixed(
                 Mode::Patch => place_patch(family, &mut rng, config),
                 Mode::Camera => place_camera(family, &mut rng, config, &camera),
             }?;
-            let outline = project_outline(family, &placement.to_image);
+            // A shared scene keeps a pose by the ROI alone, which designs of one print size share.
+            let outline = if config.shared_scene {
+                roi4(family)
+                    .iter()
+                    .map(|&p| placement.to_image.apply(p))
+                    .collect()
+            } else {
+                project_outline(family, &placement.to_image)
+            };
             let b = bounding_box(&outline);
             let inside = b[0] >= 0.0
                 && b[1] >= 0.0
@@ -267,12 +307,16 @@ pub fn synthesize_mixed(
             // larger than the view) is kept partly outside on the last try rather than dropped.
             let last_try = attempt == 29 && config.mode == Mode::Camera;
             if (inside || last_try) && !overlaps {
-                let id = rng.random_range(0..family.codebook().len());
+                let id = ids
+                    .as_mut()
+                    .unwrap_or(&mut rng)
+                    .random_range(0..family.codebook().len());
                 placed.push((id, placement, b, family));
                 break;
             }
         }
     }
+    let mut rng = if config.shared_scene { stream(2) } else { rng };
     let mut applied = Applied::default();
     for (id, placement, region, family) in &placed {
         let black = draw(&mut rng, aug.marker_black) / 255.0;

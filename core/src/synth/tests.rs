@@ -19,6 +19,25 @@ fn the_same_seed_gives_the_same_image_and_truth() {
     }
 }
 
+#[test]
+fn a_shared_scene_shows_every_family_the_same_poses_light_and_noise() {
+    let mut c = SynthConfig::new(Mode::Camera);
+    c.markers = [3, 3];
+    c.side_m = [0.05, 0.05];
+    c.distance_m = [0.3, 0.6];
+    c.shared_scene = true;
+    let scene = |name: &str| synthesize(&family(name), &c, 7).unwrap().truth;
+    let look = |t: &Truth| {
+        let poses: Vec<_> = t.markers.iter().map(|m| m.pose.clone()).collect();
+        (poses, t.applied.clone())
+    };
+    let tag = scene("apriltag-36h11");
+    assert_eq!(tag.markers.len(), 3);
+    for other in ["apriltag-xo-36h11", "aruco-6x6_250"] {
+        assert_eq!(look(&scene(other)), look(&tag), "{other}");
+    }
+}
+
 /// Darkness-weighted centroid of every visible dot of a RuneTag rendered by the camera, against
 /// the ground truth: the truth sits on the rendered keypoints, with and without barrel distortion.
 fn mean_dot_error(k1: Option<f64>, view_deg: f64) -> (f64, usize) {
