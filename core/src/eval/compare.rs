@@ -182,7 +182,7 @@ fn paired_errors(errors: &[[MarkerRead; 2]]) -> Option<PairedErrors> {
 const Z_95: f64 = 1.959_963_984_540_054;
 
 /// Wilson's score interval of a proportion `k / n` (95 %).
-fn wilson(k: usize, n: usize) -> (f64, f64) {
+pub(super) fn wilson(k: usize, n: usize) -> (f64, f64) {
     let (k, n) = (k as f64, n as f64);
     let p = k / n;
     let z2 = Z_95 * Z_95;

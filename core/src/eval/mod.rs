@@ -16,6 +16,7 @@
 //! could not detect; the scorer ignores it.
 
 pub mod compare;
+pub mod designs;
 mod plot;
 pub mod scenario;
 pub mod score;

@@ -4,6 +4,19 @@ use crate::render::svg::num;
 use svg::node::element::{Line, Polyline, Text};
 use svg::Document;
 
+/// One line of a chart.
+pub struct Series<'a> {
+    pub name: &'a str,
+    pub points: Vec<(f64, f64)>,
+    /// Which colour (families keep theirs across charts).
+    pub colour: usize,
+    /// Dashed (a tail percentile beside its median).
+    pub dashed: bool,
+}
+
+/// Colours of series, told apart in gray print as well.
+const COLOURS: [&str; 6] = ["#1f5fbf", "#d9480f", "#2b8a3e", "#862e9c", "#495057", "#e8590c"];
+
 pub fn line_chart(
     title: &str,
     x_label: &str,
@@ -11,15 +24,29 @@ pub fn line_chart(
     points: &[(f64, f64)],
     y_max: f64,
 ) -> String {
+    let series = [Series {
+        name: "",
+        points: points.to_vec(),
+        colour: 0,
+        dashed: false,
+    }];
+    chart(title, x_label, y_label, &series, y_max)
+}
+
+/// Several series on one pair of axes, with a legend for the named ones. `y_max` of 0 or less
+/// fits the axis to the data.
+pub fn chart(title: &str, x_label: &str, y_label: &str, series: &[Series], y_max: f64) -> String {
+    let all = || series.iter().flat_map(|s| s.points.iter());
+    let y_max = if y_max > 0.0 {
+        y_max
+    } else {
+        nice_ceiling(all().map(|p| p.1).filter(|y| y.is_finite()).fold(0.0, f64::max))
+    };
     let (w, h, left, bottom, top, right) = (480.0, 300.0, 56.0, 44.0, 30.0, 16.0);
-    let x_min = points.iter().map(|p| p.0).fold(f64::MAX, f64::min);
-    let x_max = points
-        .iter()
-        .map(|p| p.0)
-        .fold(f64::MIN, f64::max)
-        .max(x_min + 1e-9);
+    let x_min = all().map(|p| p.0).fold(f64::MAX, f64::min);
+    let x_max = all().map(|p| p.0).fold(f64::MIN, f64::max).max(x_min + 1e-9);
     let sx = |x: f64| left + (x - x_min) / (x_max - x_min) * (w - left - right);
-    let sy = |y: f64| h - bottom - y / y_max * (h - bottom - top);
+    let sy = |y: f64| h - bottom - y.min(y_max) / y_max * (h - bottom - top);
     let text = |x: f64, y: f64, s: &str, size: f64| {
         Text::new(s.to_string())
             .set("x", num(x))
@@ -52,23 +79,69 @@ pub fn line_chart(
         .add(text(4.0, top - 8.0, y_label, 11.0));
     for i in 0..=4 {
         let y = y_max * i as f64 / 4.0;
+        let label = if y_max < 4.0 {
+            format!("{y:.2}")
+        } else {
+            format!("{y:.0}")
+        };
         doc = doc
-            .add(text(8.0, sy(y) + 4.0, &format!("{y:.0}"), 10.0))
+            .add(text(8.0, sy(y) + 4.0, &label, 10.0))
             .add(axis(left - 4.0, sy(y), left, sy(y)));
     }
-    for &(x, _) in points {
+    let mut xs: Vec<f64> = all().map(|p| p.0).collect();
+    xs.sort_by(f64::total_cmp);
+    xs.dedup();
+    for x in xs {
         doc = doc.add(text(sx(x) - 6.0, h - bottom + 14.0, &format!("{x}"), 9.0));
     }
-    let line: Vec<String> = points
-        .iter()
-        .map(|&(x, y)| format!("{},{}", num(sx(x)), num(sy(y))))
-        .collect();
-    doc = doc.add(
-        Polyline::new()
-            .set("points", line.join(" "))
-            .set("fill", "none")
-            .set("stroke", "#1f5fbf")
-            .set("stroke-width", 2),
-    );
+    let mut legend_y = top + 4.0;
+    for s in series {
+        let colour = COLOURS[s.colour % COLOURS.len()];
+        // A missing value (no marker read) breaks the line rather than dropping to zero.
+        for run in s.points.split(|p| !p.1.is_finite()) {
+            let line: Vec<String> = run
+                .iter()
+                .map(|&(x, y)| format!("{},{}", num(sx(x)), num(sy(y))))
+                .collect();
+            let mut polyline = Polyline::new()
+                .set("points", line.join(" "))
+                .set("fill", "none")
+                .set("stroke", colour)
+                .set("stroke-width", 2);
+            if s.dashed {
+                polyline = polyline.set("stroke-dasharray", "5 3");
+            }
+            doc = doc.add(polyline);
+        }
+        if !s.name.is_empty() {
+            let mut key = Line::new()
+                .set("x1", num(w - right - 150.0))
+                .set("y1", num(legend_y))
+                .set("x2", num(w - right - 132.0))
+                .set("y2", num(legend_y))
+                .set("stroke", colour)
+                .set("stroke-width", 2);
+            if s.dashed {
+                key = key.set("stroke-dasharray", "5 3");
+            }
+            doc = doc
+                .add(key)
+                .add(text(w - right - 128.0, legend_y + 3.0, s.name, 9.0));
+            legend_y += 12.0;
+        }
+    }
     doc.to_string()
+}
+
+/// The smallest of 1, 2 or 5 times a power of ten at or above `v` (an axis end).
+fn nice_ceiling(v: f64) -> f64 {
+    if !(v.is_finite() && v > 0.0) {
+        return 1.0;
+    }
+    let power = 10f64.powf(v.log10().floor());
+    [1.0, 2.0, 5.0, 10.0]
+        .iter()
+        .map(|m| m * power)
+        .find(|&c| c >= v)
+        .unwrap_or(10.0 * power)
 }

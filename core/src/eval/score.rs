@@ -125,10 +125,10 @@ pub struct Report {
 
 /// One image's outcome.
 pub(super) struct Outcome {
-    detections: usize,
+    pub(super) detections: usize,
     /// Each truth marker, in the set's order: its correct detection, if any.
     pub(super) read: Vec<Option<MarkerRead>>,
-    time_ms: f64,
+    pub(super) time_ms: f64,
 }
 
 /// A truth marker's correct detection.
@@ -139,7 +139,9 @@ pub(super) struct MarkerRead {
     pub(super) rotation_deg: f64,
     /// The rotation is flipped though the corners are right.
     pub(super) flipped: bool,
-    pose: Option<Pose>,
+    pub(super) pose: Option<Pose>,
+    /// Where the detector put the marker's corners.
+    pub(super) corners: [[f64; 2]; 4],
 }
 
 fn iou(a: [f64; 4], b: [f64; 4]) -> f64 {
@@ -155,8 +157,11 @@ fn iou(a: [f64; 4], b: [f64; 4]) -> f64 {
     }
 }
 
-fn judge(
-    set: &BenchmarkSet,
+/// One image's truth against its detections; poses solved from corners use `camera` and a
+/// marker of side `side_m`.
+pub(super) fn judge(
+    camera: &crate::geometry::Camera,
+    side_m: f64,
     family: Option<&Family>,
     truth: &[MarkerTruth],
     detections: &[Detection],
@@ -174,8 +179,8 @@ fn judge(
         let Some((i, t)) = hit else { continue };
         let detected = d.pose.as_ref().map(Pose::from).or_else(|| {
             let f = family?;
-            let object = marker_plane_points(f, set.side_m, &f.roi_points()[..4]);
-            solve_planar(&set.camera, &object, &d.corners)
+            let object = marker_plane_points(f, side_m, &f.roi_points()[..4]);
+            solve_planar(camera, &object, &d.corners)
                 .ok()
                 .map(|s| s.pose)
         });
@@ -201,6 +206,7 @@ fn judge(
             rotation_deg,
             flipped: corners_right && rotation_deg > FLIP_ROTATION_DEG,
             pose: detected,
+            corners: d.corners,
         });
     }
     Outcome {
@@ -210,7 +216,7 @@ fn judge(
     }
 }
 
-fn row(subset: &str, outcomes: &[&Outcome]) -> Row {
+pub(super) fn row(subset: &str, outcomes: &[&Outcome]) -> Row {
     let markers: usize = outcomes.iter().map(|o| o.read.len()).sum();
     let detections: usize = outcomes.iter().map(|o| o.detections).sum();
     let correct: usize = outcomes
@@ -410,7 +416,8 @@ pub(super) fn outcomes(
             (
                 img.group,
                 judge(
-                    set,
+                    &set.camera,
+                    set.side_m,
                     family,
                     &img.truth.markers,
                     dets,
