@@ -114,7 +114,11 @@ impl DesignRun {
     /// Renders the next scene for every family (in parallel), and reads each with that family's
     /// detector (`detectors[i]` reads `families[i]`). Nothing is left to do once finished.
     pub fn step(&mut self, detectors: &mut [&mut dyn BenchDetector]) -> Result<(), SynthError> {
-        assert_eq!(detectors.len(), self.families.len(), "one detector per family");
+        assert_eq!(
+            detectors.len(),
+            self.families.len(),
+            "one detector per family"
+        );
         let index = self.done();
         let Some(scene) = self.scenes.get(index) else {
             return Ok(());
@@ -248,7 +252,8 @@ impl DesignRun {
         let mut out = Vec::new();
         for sweep in &self.scenario.sweeps {
             let c = sweep.condition;
-            let reads = self.reads(|g| matches!(g, Group::Scenario { condition: Some(x), .. } if *x == c));
+            let reads =
+                self.reads(|g| matches!(g, Group::Scenario { condition: Some(x), .. } if *x == c));
             if let Some(v) = self.recall_verdict(question(c), Some(c), &reads) {
                 out.push(v);
             }
@@ -465,10 +470,7 @@ fn crop_around(image: &GrayImage, corners: &[[f64; 2]; 4]) -> (GrayImage, [f64; 
         let start = (y * image.width + x0) as usize;
         pixels.extend_from_slice(&image.pixels[start..start + w as usize]);
     }
-    (
-        GrayImage::from_vec(w, h, pixels),
-        [x0 as f64, y0 as f64],
-    )
+    (GrayImage::from_vec(w, h, pixels), [x0 as f64, y0 as f64])
 }
 
 /// One family's scores at one swept value.

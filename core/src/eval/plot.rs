@@ -15,7 +15,9 @@ pub struct Series<'a> {
 }
 
 /// Colours of series, told apart in gray print as well.
-const COLOURS: [&str; 6] = ["#1f5fbf", "#d9480f", "#2b8a3e", "#862e9c", "#495057", "#e8590c"];
+const COLOURS: [&str; 6] = [
+    "#1f5fbf", "#d9480f", "#2b8a3e", "#862e9c", "#495057", "#e8590c",
+];
 
 pub fn line_chart(
     title: &str,
@@ -40,11 +42,19 @@ pub fn chart(title: &str, x_label: &str, y_label: &str, series: &[Series], y_max
     let y_max = if y_max > 0.0 {
         y_max
     } else {
-        nice_ceiling(all().map(|p| p.1).filter(|y| y.is_finite()).fold(0.0, f64::max))
+        nice_ceiling(
+            all()
+                .map(|p| p.1)
+                .filter(|y| y.is_finite())
+                .fold(0.0, f64::max),
+        )
     };
     let (w, h, left, bottom, top, right) = (480.0, 300.0, 56.0, 44.0, 30.0, 16.0);
     let x_min = all().map(|p| p.0).fold(f64::MAX, f64::min);
-    let x_max = all().map(|p| p.0).fold(f64::MIN, f64::max).max(x_min + 1e-9);
+    let x_max = all()
+        .map(|p| p.0)
+        .fold(f64::MIN, f64::max)
+        .max(x_min + 1e-9);
     let sx = |x: f64| left + (x - x_min) / (x_max - x_min) * (w - left - right);
     let sy = |y: f64| h - bottom - y.min(y_max) / y_max * (h - bottom - top);
     let text = |x: f64, y: f64, s: &str, size: f64| {
@@ -84,9 +94,9 @@ pub fn chart(title: &str, x_label: &str, y_label: &str, series: &[Series], y_max
         } else {
             format!("{y:.0}")
         };
-        doc = doc
-            .add(text(8.0, sy(y) + 4.0, &label, 10.0))
-            .add(axis(left - 4.0, sy(y), left, sy(y)));
+        doc =
+            doc.add(text(8.0, sy(y) + 4.0, &label, 10.0))
+                .add(axis(left - 4.0, sy(y), left, sy(y)));
     }
     let mut xs: Vec<f64> = all().map(|p| p.0).collect();
     xs.sort_by(f64::total_cmp);

@@ -217,7 +217,10 @@ impl Scenario {
                 ));
             }
             if r[0] > r[1] {
-                return Err(bad(field, format!("{r:?}: the first end is above the second")));
+                return Err(bad(
+                    field,
+                    format!("{r:?}: the first end is above the second"),
+                ));
             }
             Ok(())
         };
@@ -225,7 +228,10 @@ impl Scenario {
             return Err(bad("name", "is empty; name the scene"));
         }
         if !(self.side_mm.is_finite() && (1.0..=1000.0).contains(&self.side_mm)) {
-            return Err(bad("side_mm", format!("{} must be in [1, 1000]", self.side_mm)));
+            return Err(bad(
+                "side_mm",
+                format!("{} must be in [1, 1000]", self.side_mm),
+            ));
         }
         let c = &self.camera;
         for (field, v) in [("camera.width", c.width), ("camera.height", c.height)] {
@@ -399,20 +405,20 @@ impl Scenario {
     /// Reads and checks a scenario file (a regular file of at most [`crate::io::MAX_TEXT_BYTES`]);
     /// errors name the file and the field.
     pub fn load(path: &Path) -> Result<Self, super::EvalError> {
-        let text = crate::io::read_input_text(path, crate::io::MAX_TEXT_BYTES).map_err(|source| {
-            super::EvalError::Read {
-                path: path.to_path_buf(),
-                source,
-            }
-        })?;
+        let text =
+            crate::io::read_input_text(path, crate::io::MAX_TEXT_BYTES).map_err(|source| {
+                super::EvalError::Read {
+                    path: path.to_path_buf(),
+                    source,
+                }
+            })?;
         let de = &mut serde_json::Deserializer::from_str(&text);
-        let scenario: Scenario = serde_path_to_error::deserialize(de).map_err(|e| {
-            super::EvalError::BadScenario {
+        let scenario: Scenario =
+            serde_path_to_error::deserialize(de).map_err(|e| super::EvalError::BadScenario {
                 path: path.to_path_buf(),
                 field: e.path().to_string(),
                 message: e.inner().to_string(),
-            }
-        })?;
+            })?;
         scenario
             .validate()
             .map_err(|e| super::EvalError::BadScenario {
@@ -479,10 +485,17 @@ mod tests {
     fn bad_values_are_refused_with_the_field_named() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("bad.json");
-        let cases: [(&str, fn(&mut serde_json::Value)); 6] = [
-            ("distance_m", |v| v["distance_m"] = serde_json::json!([2.0, 1.0])),
-            ("camera", |v| v["camera"]["focal_px"] = serde_json::json!(700.0)),
-            ("white_level", |v| v["white_level"] = serde_json::json!([30.0, 40.0])),
+        type Spoil = fn(&mut serde_json::Value);
+        let cases: [(&str, Spoil); 6] = [
+            ("distance_m", |v| {
+                v["distance_m"] = serde_json::json!([2.0, 1.0])
+            }),
+            ("camera", |v| {
+                v["camera"]["focal_px"] = serde_json::json!(700.0)
+            }),
+            ("white_level", |v| {
+                v["white_level"] = serde_json::json!([30.0, 40.0])
+            }),
             ("sweeps[0].values[1]", |v| {
                 v["sweeps"][0]["values"][1] = serde_json::json!(95.0)
             }),

@@ -93,7 +93,12 @@ fn a_design_that_loses_far_markers_loses_the_distance_verdict() {
     let report = run(scenario(40), &mut Oracle::perfect(), &mut far_blind).report();
     let verdict = &report.verdict[0];
     assert_eq!(verdict.question, "reads farthest");
-    assert_eq!(verdict.best.as_deref(), Some("apriltag-36h11"), "{}", verdict.sentence);
+    assert_eq!(
+        verdict.best.as_deref(),
+        Some("apriltag-36h11"),
+        "{}",
+        verdict.sentence
+    );
     let gap = &verdict.gaps[0];
     assert!((gap.difference - 100.0 / 3.0).abs() < 1e-9, "{gap:?}");
     assert!(gap.interval.0 > 20.0 && gap.interval.1 < 45.0, "{gap:?}");
@@ -103,7 +108,10 @@ fn a_design_that_loses_far_markers_loses_the_distance_verdict() {
             .unwrap()
             .recall
     };
-    assert_eq!((far("apriltag-36h11"), far("apriltag-xo-36h11")), (1.0, 0.0));
+    assert_eq!(
+        (far("apriltag-36h11"), far("apriltag-xo-36h11")),
+        (1.0, 0.0)
+    );
 }
 
 #[test]
@@ -111,7 +119,11 @@ fn designs_that_read_alike_get_no_winner() {
     let report = run(scenario(10), &mut Oracle::perfect(), &mut Oracle::perfect()).report();
     let verdict = &report.verdict[0];
     assert_eq!(verdict.best, None);
-    assert!(verdict.sentence.contains("no design measurably"), "{}", verdict.sentence);
+    assert!(
+        verdict.sentence.contains("no design measurably"),
+        "{}",
+        verdict.sentence
+    );
 }
 
 #[test]
@@ -119,8 +131,17 @@ fn the_design_with_the_lower_rotation_error_poses_best() {
     let mut turned = Oracle::perfect();
     turned.turn_deg = 3.0;
     let report = run(scenario(10), &mut turned, &mut Oracle::perfect()).report();
-    let pose = report.verdict.iter().find(|v| v.question == "poses best").unwrap();
-    assert_eq!(pose.best.as_deref(), Some("apriltag-xo-36h11"), "{}", pose.sentence);
+    let pose = report
+        .verdict
+        .iter()
+        .find(|v| v.question == "poses best")
+        .unwrap();
+    assert_eq!(
+        pose.best.as_deref(),
+        Some("apriltag-xo-36h11"),
+        "{}",
+        pose.sentence
+    );
     assert_eq!(pose.markers, 30);
     assert_eq!(pose.gaps[0].difference, 100.0);
 }
@@ -132,10 +153,21 @@ fn the_csv_has_a_row_per_design_and_value_and_the_plots_a_line_per_design() {
     let lines: Vec<&str> = csv.lines().collect();
     assert_eq!(lines[0], CSV_HEADER);
     assert_eq!(lines.len(), 1 + 2 * 3);
-    assert!(lines[1].starts_with("apriltag-36h11,distance,0.2,4,4,4,1.0000,"), "{}", lines[1]);
+    assert!(
+        lines[1].starts_with("apriltag-36h11,distance,0.2,4,4,4,1.0000,"),
+        "{}",
+        lines[1]
+    );
     let plots = report.plots();
     let names: Vec<&str> = plots.iter().map(|(n, _)| n.as_str()).collect();
-    assert_eq!(names, ["distance-recall.svg", "distance-position.svg", "distance-rotation.svg"]);
+    assert_eq!(
+        names,
+        [
+            "distance-recall.svg",
+            "distance-position.svg",
+            "distance-rotation.svg"
+        ]
+    );
     assert!(plots[0].1.contains("apriltag-xo-36h11"));
 }
 
@@ -151,6 +183,9 @@ fn worst_cases_keep_the_misses_cut_out_around_the_marker() {
     for w in misses {
         assert!(w.read.is_none() && w.badness.is_infinite());
         assert!(w.crop.width < 320 && w.crop.height < 240);
-        assert!(w.truth.iter().all(|p| p[0] >= 0.0 && p[0] < w.crop.width as f64));
+        assert!(w
+            .truth
+            .iter()
+            .all(|p| p[0] >= 0.0 && p[0] < w.crop.width as f64));
     }
 }
