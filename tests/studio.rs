@@ -453,7 +453,10 @@ fn the_tabs_and_the_command_line_name_every_panel_from_one_list() {
         .iter()
         .map(|p| p.to_possible_value().unwrap().get_name().to_string())
         .collect();
-    assert_eq!(names, ["families", "designer", "print", "train", "detect"]);
+    assert_eq!(
+        names,
+        ["families", "designer", "print", "train", "detect", "compare"]
+    );
     for panel in Panel::ALL {
         assert_eq!(Panel::from_str(panel.name(), false), Ok(panel));
         assert_eq!(Panel::from_name(panel.name()), Some(panel));
@@ -1047,4 +1050,66 @@ fn the_browser_build_detects_the_samples_markers() {
         "{stdout}"
     );
     assert!(shot.exists(), "no screenshot");
+}
+
+/// Compare panel → a tiny sweep of two shipped designs: the verdict, the plots and the table
+/// fill in, and `tagsmith eval compare-designs` on the same scenario writes the same rows.
+#[test]
+fn the_compare_panel_runs_a_sweep_and_the_command_line_agrees() {
+    let s = setup();
+    let mut h = studio(&s);
+    h.get_by_label("Compare").click();
+    h.run();
+    assert_eq!(h.state().panel, Panel::Compare);
+    {
+        let c = &mut h.state_mut().compare;
+        c.scenario.camera.width = 320;
+        c.scenario.camera.height = 240;
+        c.scenario.scenes = 2;
+        c.sweep_values = "0.2, 0.5".into();
+    }
+    h.get_by_label("Run comparison").click();
+    h.run();
+    assert!(
+        h.state().compare.is_running(),
+        "the run goes on in the background"
+    );
+    run_until(&mut h, "the comparison", |s| !s.compare.is_running());
+    let panel = h.state().compare.result.clone().expect("a report");
+    assert_eq!(panel.report.scenes_done, 4);
+    assert_eq!(panel.report.rows.len(), 2 * 2, "a row per design and value");
+    for what in ["recall (%)", "Verdict", "Worst reads", "Export CSV"] {
+        h.get_by_label_contains(what);
+    }
+    assert!(
+        h.query_all_by_label_contains("% of 2").count() >= 4,
+        "the table lists each row's recall"
+    );
+    let scenario = h.state().compare.scenario().unwrap();
+    let file = s.out.with_file_name("scene.json");
+    scenario.save(&file).unwrap();
+    let out = s.out.with_file_name("designs");
+    let status = std::process::Command::new(env!("CARGO_BIN_EXE_tagsmith"))
+        .args(["eval", "compare-designs"])
+        .arg(&file)
+        .args(["apriltag-36h11", "apriltag-xo-36h11", "-o"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        status.status.success(),
+        "{}",
+        String::from_utf8_lossy(&status.stderr)
+    );
+    // Every column but the time per image, which is the machine's.
+    let without_time = |csv: &str| -> Vec<String> {
+        csv.lines()
+            .map(|l| l.rsplit_once(',').unwrap().0.to_string())
+            .collect()
+    };
+    let cli = std::fs::read_to_string(out.join("designs.csv")).unwrap();
+    assert_eq!(without_time(&cli), without_time(&panel.report.csv()));
+    for plot in ["distance-recall.svg", "distance-rotation.svg", "report.md"] {
+        assert!(out.join(plot).is_file(), "{plot}");
+    }
 }

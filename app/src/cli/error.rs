@@ -192,6 +192,7 @@ impl From<EvalError> for CliError {
             | EvalError::UnknownImage { .. }
             | EvalError::TooLarge { .. }
             | EvalError::BadSet { .. }
+            | EvalError::BadScenario { .. }
             | EvalError::BadDetections { .. } => CliError::bad_input(e),
         }
     }

@@ -6,6 +6,8 @@ use anyhow::Context;
 use clap::{Args, Subcommand};
 use std::path::PathBuf;
 use tagsmith::detect::DetectionsFile;
+use tagsmith::eval::designs::{detector_for, DesignRun};
+use tagsmith::eval::scenario::Scenario;
 use tagsmith::eval::{compare, score, set};
 use tagsmith::io::{read_input_text, MAX_TEXT_BYTES};
 
@@ -20,6 +22,12 @@ pub enum EvalCommand {
     Compare(CompareArgs),
     /// Write the ground truth as a detections file: the format's reference and a perfect score.
     Oracle(OracleArgs),
+    /// Write a scenario file to start from (the paper's camera at one distance, swept over the
+    /// view angle), to edit for your scene and give to `generate --scenario` or `compare-designs`.
+    Scenario(ScenarioArgs),
+    /// Compare 2–4 designs under a scenario: every family reads the same scenes; writes a table,
+    /// CSV, plots against each swept condition and a verdict with 95 % intervals to DIR.
+    CompareDesigns(CompareDesignsArgs),
 }
 
 impl EvalCommand {
@@ -29,6 +37,8 @@ impl EvalCommand {
             EvalCommand::Score(a) => a.run(),
             EvalCommand::Compare(a) => a.run(),
             EvalCommand::Oracle(a) => a.run(),
+            EvalCommand::Scenario(a) => a.run(),
+            EvalCommand::CompareDesigns(a) => a.run(),
         }
     }
 }
@@ -46,6 +56,10 @@ pub struct GenerateSetArgs {
     pub per_cell: u32,
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// Render a scenario file's scenes (`eval scenario` writes one) in place of the paper's
+    /// protocol; the scenario sets the print size, the camera and the seed.
+    #[arg(long, conflicts_with_all = ["side_mm", "per_cell", "seed"])]
+    pub scenario: Option<PathBuf>,
     #[arg(short, long)]
     pub output: PathBuf,
 }
@@ -59,9 +73,13 @@ impl GenerateSetArgs {
             seed: self.seed,
             ..set::SetParams::default()
         };
+        let scenario = self.scenario.as_deref().map(Scenario::load).transpose()?;
         output_folder(&self.output, "--output")?;
         let started = std::time::Instant::now();
-        let s = set::generate(&family, &params, &self.output)?;
+        let s = match &scenario {
+            Some(scenario) => set::generate_scenario(&family, scenario, &self.output)?,
+            None => set::generate(&family, &params, &self.output)?,
+        };
         // The set carries its family, so a set of a design that is no built-in scores anywhere.
         let spec = tagsmith::family::to_json_string(family.spec());
         write_output(&self.output.join(SET_FAMILY_FILE), spec.as_bytes())?;
@@ -69,7 +87,7 @@ impl GenerateSetArgs {
             "wrote {} images of {} ({} mm) to {} in {:.1} s",
             s.images.len(),
             family.name(),
-            self.side_mm,
+            s.side_m * 1000.0,
             self.output.display(),
             started.elapsed().as_secs_f64()
         );
@@ -209,5 +227,127 @@ impl OracleArgs {
         )?;
         println!("wrote {}", self.output.display());
         Ok(())
+    }
+}
+
+#[derive(Args, Debug)]
+pub struct ScenarioArgs {
+    /// Camera to marker of the paper's XO study setting, in metres [range: [0.05, 10]].
+    #[arg(long, default_value_t = 0.3, value_parser = f64_in(0.05, 10.0))]
+    pub distance_m: f64,
+    /// The scenario file to write.
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
+impl ScenarioArgs {
+    pub fn run(self) -> Result<()> {
+        Scenario::example(self.distance_m).save(&self.output)?;
+        println!("wrote {}", self.output.display());
+        Ok(())
+    }
+}
+
+#[derive(Args, Debug)]
+pub struct CompareDesignsArgs {
+    /// Scenario file (`eval scenario` writes one to start from).
+    pub scenario: PathBuf,
+    /// 2–4 families: built-in names or family files. A built-in reads with its shipped weights;
+    /// a family file with the model the studio's Train panel saves beside it (FILE.stage2.bin),
+    /// or one given with --model.
+    #[arg(num_args = 2..=4, required = true)]
+    pub families: Vec<String>,
+    /// A family's stage-2 model, as FAMILY=MODEL (FAMILY as given above); repeatable.
+    #[arg(long, value_name = "FAMILY=MODEL")]
+    pub model: Vec<String>,
+    /// Folder for report.md, report.json, designs.csv and the plots.
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
+impl CompareDesignsArgs {
+    pub fn run(self) -> Result<()> {
+        let scenario = Scenario::load(&self.scenario)?;
+        let mut models = std::collections::HashMap::new();
+        for m in &self.model {
+            let Some((family, path)) = m.split_once('=') else {
+                return Err(bad_input!("--model {m:?}: give FAMILY=MODEL"));
+            };
+            if !self.families.iter().any(|f| f == family) {
+                return Err(bad_input!(
+                    "--model {m:?}: {family:?} is not one of the families compared"
+                ));
+            }
+            models.insert(family.to_string(), PathBuf::from(path));
+        }
+        let mut families = Vec::new();
+        let mut detectors = Vec::new();
+        for name in &self.families {
+            let family = load_family(name)?;
+            let stage2 = design_weights(name, &family, models.get(name))?;
+            detectors.push(detector_for(family.clone(), stage2, &scenario).failure()?);
+            families.push(family);
+        }
+        let mut run = DesignRun::new(scenario, families)
+            .map_err(|e| bad_input!("{}: {e}", self.scenario.display()))?;
+        output_folder(&self.output, "--output")?;
+        std::fs::create_dir_all(&self.output)
+            .with_context(|| format!("cannot create {}", self.output.display()))
+            .failure()?;
+        let bar = super::common::progress_bar(
+            run.len() as u64,
+            "{bar:40} {pos}/{len} scenes per design, {elapsed} (eta {eta})",
+        );
+        while !run.finished() {
+            let mut each: Vec<&mut dyn tagsmith::detect::BenchDetector> = detectors
+                .iter_mut()
+                .map(|d| d as &mut dyn tagsmith::detect::BenchDetector)
+                .collect();
+            run.step(&mut each)?;
+            bar.inc(1);
+        }
+        bar.finish_and_clear();
+        let report = run.report();
+        let json = serde_json::to_string_pretty(&report).expect("serialises");
+        write_output(&self.output.join("report.json"), json.as_bytes())?;
+        let md = report.markdown();
+        write_output(&self.output.join("report.md"), md.as_bytes())?;
+        write_output(&self.output.join("designs.csv"), report.csv().as_bytes())?;
+        for (name, svg) in report.plots() {
+            write_output(&self.output.join(name), svg.as_bytes())?;
+        }
+        print_quietly(&md);
+        println!("\nwrote {}", self.output.display());
+        Ok(())
+    }
+}
+
+/// A design's stage 2: the model given for it, the one saved beside its family file, or the
+/// weights shipped for a built-in.
+fn design_weights(
+    name: &str,
+    family: &tagsmith::family::Family,
+    given: Option<&PathBuf>,
+) -> Result<tagsmith::detect::stage2::Stage2> {
+    use tagsmith::detect::stage2::{shipped_model, Stage2};
+    if let Some(path) = given {
+        return Ok(Stage2::load(path, family)?);
+    }
+    let beside = tagsmith::detect::model_file::attached_to(std::path::Path::new(name));
+    if tagsmith::builtin::get(name).is_none() && beside.is_file() {
+        return Ok(Stage2::load(&beside, family)?);
+    }
+    match shipped_model(family.name()) {
+        Some(bytes) => Ok(Stage2::from_bytes(
+            bytes,
+            &format!("shipped weights of {}", family.name()),
+            family,
+        )?),
+        None => Err(bad_input!(
+            "{name}: no weights for {:?}; train them (the studio's Train panel saves them as {}) \
+             or give --model {name}=MODEL",
+            family.name(),
+            beside.display()
+        )),
     }
 }

@@ -3,6 +3,7 @@
 //! `tagsmith::family::edit::Edit`, every picture and file comes from `tagsmith::render`.
 
 pub mod codegen;
+pub mod compare;
 pub mod design;
 pub mod designer;
 pub mod detect;
@@ -34,16 +35,18 @@ pub enum Panel {
     Print,
     Train,
     Detect,
+    Compare,
 }
 
 impl Panel {
     /// In tab order.
-    pub const ALL: [Panel; 5] = [
+    pub const ALL: [Panel; 6] = [
         Panel::Families,
         Panel::Designer,
         Panel::Print,
         Panel::Train,
         Panel::Detect,
+        Panel::Compare,
     ];
 
     /// The tab's text.
@@ -54,6 +57,7 @@ impl Panel {
             Panel::Print => "Print",
             Panel::Train => "Train",
             Panel::Detect => "Detect",
+            Panel::Compare => "Compare",
         }
     }
 
@@ -65,6 +69,7 @@ impl Panel {
             Panel::Print => "lay the design's markers out on pages and export PDF or SVG",
             Panel::Train => "train the detector for the design (desktop)",
             Panel::Detect => "find markers in photographs with the learned detector",
+            Panel::Compare => "which design suits my scene: designs read the same rendered scenes",
         }
     }
 
@@ -76,6 +81,7 @@ impl Panel {
             Panel::Print => "print",
             Panel::Train => "train",
             Panel::Detect => "detect",
+            Panel::Compare => "compare",
         }
     }
 
@@ -90,6 +96,7 @@ impl Panel {
             Panel::Print => print::show(studio, ui, ctx),
             Panel::Train => train::show(studio, ui, ctx),
             Panel::Detect => detect::show(studio, ui, ctx),
+            Panel::Compare => compare::show(studio, ui, ctx),
         }
     }
 }
@@ -146,6 +153,7 @@ pub struct Studio {
     pub print: print::PrintState,
     pub detect: detect::DetectState,
     pub train: train::TrainState,
+    pub compare: compare::CompareState,
     textures: preview::Textures,
     pending_replace: Option<PendingReplace>,
     /// The window was asked to close with unsaved changes; the confirmation is showing.
@@ -168,6 +176,7 @@ impl Studio {
             print: print::PrintState::default(),
             detect: detect::DetectState::default(),
             train: train::TrainState::default(),
+            compare: compare::CompareState::default(),
             textures: preview::Textures::default(),
             pending_replace: None,
             quit_prompt: false,

@@ -26,7 +26,7 @@ pub fn show(_studio: &mut super::Studio, ui: &mut egui::Ui, _ctx: &egui::Context
 
 /// Where a family's own stage-2 model lives: next to its family file.
 pub fn attached_model(family_file: &std::path::Path) -> std::path::PathBuf {
-    family_file.with_extension("stage2.bin")
+    tagsmith::detect::model_file::attached_to(family_file)
 }
 
 #[cfg(not(target_arch = "wasm32"))]

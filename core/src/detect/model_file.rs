@@ -18,6 +18,12 @@ pub const WIDTHS: RangeInclusive<usize> = 8..=256;
 /// header may record.
 pub const MAX_STEPS: u64 = 10_000_000;
 
+/// Where the studio keeps the stage-2 model trained for a family file: beside it, as
+/// `NAME.stage2.bin`, so that the family detects wherever the file goes.
+pub fn attached_to(family_file: &Path) -> std::path::PathBuf {
+    family_file.with_extension("stage2.bin")
+}
+
 #[derive(Debug, thiserror::Error)]
 pub enum ModelError {
     #[error("{path}: {source}")]
