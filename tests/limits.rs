@@ -634,3 +634,98 @@ fn eval_reads_no_fifo_or_device_as_set_or_detections() {
         &["set.json", "folder"],
     );
 }
+
+/// A scenario file is checked before anything renders: a value out of range names the file and
+/// the field, a family without weights is named, and nothing is written.
+#[test]
+fn a_bad_scenario_or_a_design_without_weights_is_refused_before_rendering() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    tagsmith(d, &["eval", "scenario", "-o", "scene.json"]).ok();
+    let mut scene: Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("scene.json")).unwrap()).unwrap();
+    let designs = ["apriltag-36h11", "apriltag-xo-36h11"];
+    let compare = |file: &str, families: &[&str]| -> Vec<String> {
+        let mut args = vec!["eval".to_string(), "compare-designs".into(), file.into()];
+        args.extend(families.iter().map(|f| f.to_string()));
+        args.extend(["-o".into(), "out".into()]);
+        args
+    };
+    let run = |args: &[String], names: &[&str]| {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        refused(d, &args, names);
+        assert!(!d.join("out").exists(), "{args:?} wrote its output folder");
+    };
+    scene["distance_m"] = json!([2.0, 1.0]);
+    std::fs::write(d.join("far.json"), scene.to_string()).unwrap();
+    run(&compare("far.json", &designs), &["far.json", "distance_m"]);
+    let generate = [
+        "eval",
+        "generate",
+        "apriltag-36h11",
+        "--scenario",
+        "far.json",
+        "-o",
+        "out",
+    ];
+    run(&generate.map(String::from), &["far.json", "distance_m"]);
+    scene["distance_m"] = json!([0.3, 0.3]);
+    scene["sweeps"][0]["condition"] = json!("zoom");
+    std::fs::write(d.join("zoom.json"), scene.to_string()).unwrap();
+    run(
+        &compare("zoom.json", &designs),
+        &["zoom.json", "sweeps[0].condition"],
+    );
+    run(
+        &compare("scene.json", &["apriltag-36h11", "runetag"]),
+        &["runetag", "no weights"],
+    );
+    run(&compare("scene.json", &["apriltag-36h11"]), &["FAMILIES"]);
+}
+
+/// `eval generate --scenario` renders the scenario's scenes as a set, which scores per swept
+/// value like the protocol's subsets.
+#[test]
+fn a_scenario_renders_as_a_set_scored_per_swept_value() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    tagsmith(d, &["eval", "scenario", "-o", "scene.json"]).ok();
+    let mut scene: Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("scene.json")).unwrap()).unwrap();
+    scene["camera"] = json!({"width": 320, "height": 240, "fov_deg": 70.0});
+    scene["sweeps"] = json!([{"condition": "noise", "values": [0.0, 40.0]}]);
+    scene["scenes"] = json!(3);
+    std::fs::write(d.join("scene.json"), scene.to_string()).unwrap();
+    let args = [
+        "eval",
+        "generate",
+        "apriltag-36h11",
+        "--scenario",
+        "scene.json",
+        "-o",
+        "set",
+    ];
+    tagsmith(d, &args).ok();
+    let set: Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("set/set.json")).unwrap()).unwrap();
+    let images = set["images"].as_array().unwrap();
+    assert_eq!(images.len(), 6);
+    assert_eq!(
+        images[5]["group"],
+        json!({"kind": "scenario", "condition": "noise", "value": 40.0})
+    );
+    assert_eq!(set["camera"]["width"], 320);
+    tagsmith(d, &["eval", "oracle", "set", "-o", "truth.json"]).ok();
+    let scored = tagsmith(d, &["eval", "score", "set", "truth.json", "-o", "report"]);
+    scored.ok();
+    assert!(
+        scored.stdout.contains("| scenario | 6 | 6 | 100.0 %"),
+        "{}",
+        scored.stdout
+    );
+    assert!(
+        scored.stdout.contains("recall and error vs noise"),
+        "{}",
+        scored.stdout
+    );
+}
