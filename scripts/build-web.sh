@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Builds the studio for browsers into app/dist (static files: serve them with any web server).
-#   scripts/build-web.sh            release build
+#   scripts/build-web.sh            the `web` profile (Cargo.toml): LTO, size-optimised UI crates
 #   scripts/build-web.sh --serve    build, then serve on http://127.0.0.1:8080
 # Needs: rustup target add wasm32-unknown-unknown; cargo install wasm-bindgen-cli --version <the
 # wasm-bindgen version in Cargo.lock>. (cargo + wasm-bindgen is all trunk did for this one page.)
@@ -18,11 +18,16 @@ fi
 # in the page is 1.27× faster with it (BENCHMARKS.md "Studio"). The flag is for the wasm32 target
 # only, so host builds and the CI's wasm check keep their caches.
 export CARGO_TARGET_WASM32_UNKNOWN_UNKNOWN_RUSTFLAGS="${CARGO_TARGET_WASM32_UNKNOWN_UNKNOWN_RUSTFLAGS:--C target-feature=+simd128}"
-cargo build --release --target wasm32-unknown-unknown -p tagsmith-studio --bin tagsmith
+cargo build --profile web --target wasm32-unknown-unknown -p tagsmith-studio --bin tagsmith
 target_dir=$(cargo metadata --format-version 1 --no-deps | python3 -c 'import json,sys; print(json.load(sys.stdin)["target_directory"])')
 rm -rf app/dist.tmp
 wasm-bindgen --target web --no-typescript --out-dir app/dist.tmp \
-  "$target_dir/wasm32-unknown-unknown/release/tagsmith.wasm"
+  "$target_dir/wasm32-unknown-unknown/web/tagsmith.wasm"
+# No wasm-opt pass: binaryen 132's -O2 took 1.5 MB more off but made detection 20 % slower, and
+# Debian's binaryen 108 breaks wasm-bindgen's reference-type tables (BENCHMARKS.md, "Studio").
+wasm_bytes=$(wc -c < app/dist.tmp/tagsmith_bg.wasm)
+gzip_bytes=$(gzip -9 -c app/dist.tmp/tagsmith_bg.wasm | wc -c)
+echo "tagsmith_bg.wasm: $wasm_bytes bytes, $gzip_bytes gzipped"
 cp app/index.html app/dist.tmp/index.html
 # Swap the finished folder in whole, so a failed build never leaves a half-written dist.
 rm -rf app/dist && mv app/dist.tmp app/dist

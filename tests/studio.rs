@@ -1085,6 +1085,17 @@ fn the_compare_panel_runs_a_sweep_and_the_command_line_agrees() {
         h.query_all_by_label_contains("% of 2").count() >= 4,
         "the table lists each row's recall"
     );
+    h.get_by_label("Export CSV").click();
+    h.run();
+    h.get_by_label("Export plots (PNG)").click();
+    h.run();
+    let exported = std::fs::read_to_string(s.out.join("designs.csv")).unwrap();
+    assert_eq!(exported, panel.report.csv());
+    for what in ["recall", "position", "rotation"] {
+        let png = s.out.join(format!("distance-{what}.png"));
+        let decoded = tagsmith::image::read(&png, &Default::default()).expect("a PNG");
+        assert!(decoded.width >= 480, "{what}: {} px", decoded.width);
+    }
     let scenario = h.state().compare.scenario().unwrap();
     let file = s.out.with_file_name("scene.json");
     scenario.save(&file).unwrap();

@@ -21,6 +21,16 @@ const browser = await chromium.launch({
 let failed = false;
 try {
   const page = await browser.newPage({ viewport: { width: 1400, height: 900 } });
+  // Every animation frame's time from the first one on: the longest gap between two frames is the
+  // longest the page stood still (a detection on the UI thread draws nothing until it ends).
+  await page.addInitScript(() => {
+    window.__frames = [];
+    const tick = (t) => {
+      window.__frames.push(t);
+      requestAnimationFrame(tick);
+    };
+    requestAnimationFrame(tick);
+  });
   const lines = [];
   page.on("console", (m) => lines.push(m.text()));
   page.on("pageerror", (e) => lines.push(`page error: ${e.message}`));
@@ -35,6 +45,15 @@ try {
     console.log(detected);
     // Let a few frames draw the result before the picture is taken.
     await page.waitForTimeout(1500);
+    const frames = await page.evaluate(() => window.__frames);
+    const gaps = frames.slice(1).map((t, i) => t - frames[i]).sort((a, b) => a - b);
+    if (gaps.length > 0) {
+      const first = frames[0];
+      console.log(
+        `frames: ${frames.length}, first at ${first.toFixed(0)} ms; frame time median ` +
+          `${gaps[Math.floor(gaps.length / 2)].toFixed(1)} ms, longest ${gaps[gaps.length - 1].toFixed(0)} ms`,
+      );
+    }
   } else {
     failed = true;
     console.error("no detection was logged; the page said:\n" + lines.join("\n"));

@@ -48,7 +48,9 @@ pub struct CompareState {
     /// The last run's report (live while it runs) and its worst reads.
     pub result: Option<Snapshot>,
     pub error: Option<String>,
+    /// The worst reads' textures, and the scenes read when they were made.
     thumbnails: Vec<egui::TextureHandle>,
+    thumbnails_at: usize,
 }
 
 impl Default for CompareState {
@@ -70,6 +72,7 @@ impl Default for CompareState {
             result: None,
             error: None,
             thumbnails: Vec::new(),
+            thumbnails_at: 0,
         }
     }
 }
@@ -580,7 +583,8 @@ fn results(c: &mut CompareState, ui: &mut egui::Ui, ctx: &egui::Context) -> Opti
         });
     ui.heading("Worst reads");
     ui.label("Green: the true outline; red: what the detector read (none: missed).");
-    if c.thumbnails.len() != snapshot.worst.len() {
+    if c.thumbnails.len() != snapshot.worst.len() || c.thumbnails_at != report.scenes_done {
+        c.thumbnails_at = report.scenes_done;
         c.thumbnails = (snapshot.worst.iter().enumerate())
             .map(|(i, w)| {
                 let image = egui::ColorImage::from_gray(

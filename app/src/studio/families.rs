@@ -43,8 +43,8 @@ pub struct Entry {
     thumbnail: Thumbnail,
 }
 
-/// ID 0 drawn by the core's renderer when the entry is made (`None` when the family cannot draw
-/// it), and its texture, uploaded on first show. The entry is rebuilt when its file changes, so
+/// A marker ([`showcase_id`]) drawn by the core's renderer when the entry is made (`None` when
+/// the family cannot draw it), and its texture, uploaded on first show. The entry is rebuilt when its file changes, so
 /// the texture never goes stale and no frame renders a thumbnail again.
 #[derive(Clone, Default)]
 struct Thumbnail {
@@ -122,9 +122,29 @@ impl Entry {
     }
 }
 
+/// The ID a card shows: among the first few, the one whose code uses the most symbols (ID 0 of
+/// a quaternary family is all one symbol, a black square that hides the design).
+fn showcase_id(family: &Family) -> usize {
+    let codebook = family.codebook();
+    let variety = |id: usize| {
+        let mut seen = [false; 256];
+        codebook
+            .code(id)
+            .unwrap_or(&[])
+            .iter()
+            .for_each(|&s| seen[s as usize] = true);
+        seen.iter().filter(|&&b| b).count()
+    };
+    // The lowest ID of the most varied: a family whose ID 0 shows every symbol keeps ID 0.
+    (0..codebook.len().min(16))
+        .max_by_key(|&id| (variety(id), std::cmp::Reverse(id)))
+        .unwrap_or(0)
+}
+
 fn thumbnail(family: &Family) -> Option<ColorImage> {
+    let id = showcase_id(family);
     let scene =
-        tagsmith::render::marker_scene(family, 0, tagsmith::render::SceneOptions::default())
+        tagsmith::render::marker_scene(family, id, tagsmith::render::SceneOptions::default())
             .ok()?;
     let pixmap = tagsmith::render::raster::rasterize_width(&scene, THUMBNAIL_PX).ok()?;
     Some(preview::pixmap_image(&pixmap))

@@ -236,16 +236,21 @@ impl DesignRun {
         }
     }
 
-    /// Each family's reads of the scenes `holds` accepts, marker by marker, in one order.
+    /// Each family's reads of the scenes `holds` accepts, marker by marker, in one order: the
+    /// same markers for every family. A scene whose families hold different marker counts (designs
+    /// whose outlines let a different number fit) is left out rather than paired wrongly.
     fn reads(&self, holds: impl Fn(&Group) -> bool) -> Vec<Vec<Option<super::score::MarkerRead>>> {
-        (self.outcomes.iter())
-            .map(|outcomes| {
-                (self.scenes.iter().zip(outcomes))
-                    .filter(|(s, _)| holds(&s.group))
-                    .flat_map(|(_, o)| o.read.iter().copied())
-                    .collect()
-            })
-            .collect()
+        let mut out = vec![Vec::new(); self.families.len()];
+        for (i, scene) in self.scenes[..self.done()].iter().enumerate() {
+            let counts = self.outcomes.iter().map(|o| o[i].read.len());
+            if !holds(&scene.group) || counts.clone().min() != counts.max() {
+                continue;
+            }
+            for (k, outcomes) in self.outcomes.iter().enumerate() {
+                out[k].extend(outcomes[i].read.iter().copied());
+            }
+        }
+        out
     }
 
     fn verdict(&self) -> Vec<Verdict> {
