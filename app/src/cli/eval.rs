@@ -288,8 +288,13 @@ impl CompareDesignsArgs {
             detectors.push(detector_for(family.clone(), stage2, &scenario).failure()?);
             families.push(family);
         }
-        let mut run = DesignRun::new(scenario, families)
-            .map_err(|e| bad_input!("{}: {e}", self.scenario.display()))?;
+        let mut run = DesignRun::new(scenario, families).map_err(|e| {
+            if e.field == "families" {
+                bad_input!("{}", e.message)
+            } else {
+                bad_input!("{}: {e}", self.scenario.display())
+            }
+        })?;
         output_folder(&self.output, "--output")?;
         std::fs::create_dir_all(&self.output)
             .with_context(|| format!("cannot create {}", self.output.display()))

@@ -179,6 +179,13 @@ impl CompareState {
                 running.inline = None;
             }
         }
+        // The end is read before the last snapshot: the run publishes its snapshot before it
+        // ends, so a snapshot taken after the end is the final one.
+        let ended = running
+            .finished
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .take();
         if let Some(s) = running
             .snapshot
             .lock()
@@ -187,11 +194,7 @@ impl CompareState {
         {
             self.result = Some(s);
         }
-        let ended = running
-            .finished
-            .lock()
-            .unwrap_or_else(|p| p.into_inner())
-            .take()?;
+        let ended = ended?;
         let cancelled = running.cancel.load(Ordering::Relaxed);
         self.running = None;
         let done = self.result.as_ref().map_or(0, |s| s.report.scenes_done);
@@ -388,6 +391,13 @@ fn settings(studio: &mut Studio, ui: &mut egui::Ui) {
                 range_row(ui, "Noise sigma", &mut s.noise_sigma, 0.0..=300.0, 1.0);
                 range_row(
                     ui,
+                    "Marker black (gray)",
+                    &mut s.black_level,
+                    0.0..=255.0,
+                    1.0,
+                );
+                range_row(
+                    ui,
                     "Marker white (gray)",
                     &mut s.white_level,
                     1.0..=255.0,
@@ -488,7 +498,10 @@ fn results(c: &mut CompareState, ui: &mut egui::Ui, ctx: &egui::Context) -> Opti
     for v in &report.verdict {
         ui.label(&v.sentence);
     }
-    let x_label = c.sweep.label();
+    // The run's own condition: the sweep box may have changed since.
+    let x_label = (report.rows.first())
+        .and_then(|r| r.condition)
+        .map_or("scenes", Condition::label);
     let width = (ui.available_width() / 3.0 - 8.0).max(200.0);
     ui.horizontal(|ui| {
         for (id, title, pick) in [
@@ -610,9 +623,11 @@ fn results(c: &mut CompareState, ui: &mut egui::Ui, ctx: &egui::Context) -> Opti
                     points.push(points[0]);
                     egui::Shape::line(points, egui::Stroke::new(1.5, colour))
                 };
-                ui.painter().add(outline(&w.truth, egui::Color32::GREEN));
+                // Clipped to the thumbnail: a marker partly outside its scene reaches past it.
+                let painter = ui.painter_at(response.rect);
+                painter.add(outline(&w.truth, egui::Color32::GREEN));
                 if let Some(read) = &w.read {
-                    ui.painter().add(outline(read, egui::Color32::RED));
+                    painter.add(outline(read, egui::Color32::RED));
                 }
                 let what = match w.group {
                     tagsmith::eval::set::Group::Scenario {
@@ -622,10 +637,10 @@ fn results(c: &mut CompareState, ui: &mut egui::Ui, ctx: &egui::Context) -> Opti
                     _ => String::new(),
                 };
                 let family = &report.families[w.family];
-                let verdict = if w.read.is_none() {
-                    "missed".to_string()
-                } else {
-                    format!("{:.1}°", w.badness)
+                let verdict = match (&w.read, w.rotation_deg) {
+                    (None, _) => "missed".to_string(),
+                    (Some(_), Some(deg)) => format!("{deg:.1}° off"),
+                    (Some(_), None) => "read, no pose".to_string(),
                 };
                 ui.small(format!("{family}\n{what}: {verdict}"));
             });

@@ -33,7 +33,9 @@ pub struct WorstCase {
     pub crop: GrayImage,
     pub truth: [[f64; 2]; 4],
     pub read: Option<[[f64; 2]; 4]>,
-    /// Rotation error of the read, degrees (infinite when missed).
+    /// Rotation error of the read, degrees, when it has a pose.
+    pub rotation_deg: Option<f64>,
+    /// How it ranks: infinite when missed, else the rotation error (0 without a pose).
     pub badness: f64,
 }
 
@@ -187,6 +189,7 @@ impl DesignRun {
                 crop,
                 truth: shift(truth_corners),
                 read: read.map(|r| shift(r.corners)),
+                rotation_deg: read.map(|r| r.rotation_deg).filter(|d| d.is_finite()),
                 badness,
             });
         }
@@ -323,16 +326,21 @@ impl DesignRun {
                 )
             })
             .collect();
+        // Pooled over the sweep: the values share their scenes, so the pairs are not independent
+        // and the interval is a little narrower than it should be (ARCHITECTURE §11).
+        let over = condition.map_or("every scene".to_string(), |c| {
+            format!("recall over the whole {} sweep", c.name())
+        });
         let sentence = if measurable {
             format!(
-                "{}: {} ({recall:.1} % of {markers} markers), {}.",
+                "{} ({over}): {} ({recall:.1} % of {markers} markers), {}.",
                 capitalised(question),
                 names[best],
                 detail.join("; ")
             )
         } else {
             format!(
-                "{}: no design measurably; {} reads {recall:.1} % of {markers} markers, {}.",
+                "{} ({over}): no design measurably; {} reads {recall:.1} % of {markers} markers, {}.",
                 capitalised(question),
                 names[best],
                 detail.join("; ")
@@ -613,8 +621,10 @@ impl DesignReport {
                 conditions.push(r.condition);
             }
         }
-        for c in conditions {
-            let (slug, label) = c.map_or(("all", "scenes"), |c| (c.name(), c.label()));
+        // A scenario without sweeps has one value per design: a table row, not a curve.
+        for condition in conditions.into_iter().flatten() {
+            let (slug, label) = (condition.name(), condition.label());
+            let c = Some(condition);
             let line = |family: usize, name: &str, dashed: bool, y: &dyn Fn(&DesignRow) -> f64| {
                 let points = (self.rows.iter())
                     .filter(|r| r.condition == c && r.family == self.families[family])

@@ -77,12 +77,6 @@ impl Condition {
             Condition::Light => (1.0, 255.0),
         }
     }
-
-    /// Whether reading gets harder as the value grows (a longer reach is a higher value; less
-    /// light is a lower one).
-    pub fn harder_upwards(self) -> bool {
-        !matches!(self, Condition::Light)
-    }
 }
 
 /// One condition and the values it takes.
@@ -168,6 +162,17 @@ fn bad(field: impl Into<String>, message: impl Into<String>) -> BadField {
 /// The most scenes one scenario may render (per family).
 pub const MAX_SCENES: u64 = super::set::MAX_SET_IMAGES;
 
+/// The nearest a marker may be, in print sizes: nearer, a turned marker's far corners pass
+/// behind the camera and its outline folds.
+pub const NEAREST_SIDES: f64 = 1.5;
+
+fn near_message(distance_m: f64, nearest_m: f64) -> String {
+    format!(
+        "{distance_m} m is nearer than {nearest_m} m, {NEAREST_SIDES}× the print size: a turned \
+         marker that near passes behind the camera"
+    )
+}
+
 /// One scene of a scenario: its group (the swept value), how it renders and its seed.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Scene {
@@ -246,6 +251,17 @@ impl Scenario {
             (Some(f), None) if !(f.is_finite() && f > 0.0 && f <= 1e6) => {
                 return Err(bad("camera.focal_px", format!("{f} must be in (0, 1e6]")));
             }
+            (Some(f), None) if !(1.0..179.0).contains(&c.diagonal_fov_deg()) => {
+                return Err(bad(
+                    "camera.focal_px",
+                    format!(
+                        "{f} px gives a {:.1}° diagonal field of view at {}×{}; it must be in (1, 179)",
+                        c.diagonal_fov_deg(),
+                        c.width,
+                        c.height
+                    ),
+                ));
+            }
             (None, Some(fov)) if !(fov.is_finite() && fov > 1.0 && fov < 179.0) => {
                 return Err(bad("camera.fov_deg", format!("{fov} must be in (1, 179)")));
             }
@@ -258,6 +274,11 @@ impl Scenario {
             limits(Condition::Light),
         );
         range("distance_m", self.distance_m, d.0, d.1)?;
+        let nearest = NEAREST_SIDES * self.side_mm / 1000.0;
+        let too_near = |v: f64| v < nearest;
+        if too_near(self.distance_m[0]) {
+            return Err(bad("distance_m", near_message(self.distance_m[0], nearest)));
+        }
         range("angle_deg", self.angle_deg, a.0, a.1)?;
         range("black_level", self.black_level, 0.0, 255.0)?;
         range("white_level", self.white_level, l.0, l.1)?;
@@ -306,6 +327,18 @@ impl Scenario {
                     return Err(bad(
                         format!("sweeps[{i}].values[{k}]"),
                         format!("{v} must be in [{lo}, {hi}] for {}", s.condition.name()),
+                    ));
+                }
+                if s.values[..k].contains(v) {
+                    return Err(bad(
+                        format!("sweeps[{i}].values[{k}]"),
+                        format!("{v} is listed twice"),
+                    ));
+                }
+                if s.condition == Condition::Distance && too_near(*v) {
+                    return Err(bad(
+                        format!("sweeps[{i}].values[{k}]"),
+                        near_message(*v, nearest),
                     ));
                 }
                 if s.condition == Condition::Light && *v <= self.black_level[1] {
@@ -384,7 +417,10 @@ impl Scenario {
         for (i, sweep) in self.sweeps.iter().enumerate() {
             // One stream of scenes per sweep, the same for each of its values.
             let sweep_seed = image_seed(self.seed ^ 0x5_EE9, i as u64 + 1);
-            for &value in &sweep.values {
+            // In ascending order, so rows and curves run along the axis.
+            let mut values = sweep.values.clone();
+            values.sort_by(f64::total_cmp);
+            for value in values {
                 let mut config = base.clone();
                 apply(&mut config, sweep.condition, value);
                 for k in 0..self.scenes {
@@ -486,7 +522,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("bad.json");
         type Spoil = fn(&mut serde_json::Value);
-        let cases: [(&str, Spoil); 6] = [
+        let cases: [(&str, Spoil); 9] = [
             ("distance_m", |v| {
                 v["distance_m"] = serde_json::json!([2.0, 1.0])
             }),
@@ -500,6 +536,18 @@ mod tests {
                 v["sweeps"][0]["values"][1] = serde_json::json!(95.0)
             }),
             ("scenes", |v| v["scenes"] = serde_json::json!(0)),
+            ("distance_m", |v| {
+                v["distance_m"] = serde_json::json!([0.05, 0.3])
+            }),
+            ("sweeps[0].values[2]", |v| {
+                v["sweeps"][0]["values"] = serde_json::json!([10.0, 20.0, 10.0])
+            }),
+            (
+                "camera.focal_px",
+                |v| {
+                    v["camera"] = serde_json::json!({"width": 640, "height": 480, "focal_px": 1e-9})
+                },
+            ),
             ("sweeps[0].condition", |v| {
                 v["sweeps"][0]["condition"] = serde_json::json!("zoom")
             }),

@@ -128,6 +128,10 @@ pub enum BackgroundKind {
     Plain,
 }
 
+/// How far apart a shared scene keeps its markers, in ROI box sizes (room for any family's quiet
+/// zone and drawn area beyond its ROI).
+const SHARED_SCENE_MARGIN: f64 = 0.35;
+
 /// The gray level of a plain background (0–1).
 const PLAIN_BACKGROUND: f32 = 0.6;
 
@@ -300,9 +304,21 @@ pub fn synthesize_mixed(
                 && b[1] >= 0.0
                 && b[2] < config.width as f64
                 && b[3] < config.height as f64;
-            let overlaps = placed
-                .iter()
-                .any(|(_, _, o, _)| b[0] < o[2] && o[0] < b[2] && b[1] < o[3] && o[1] < b[3]);
+            // A shared scene keeps markers apart by their ROI boxes grown by a margin no family
+            // sets: a design's drawn area and quiet zone must not decide where the others go.
+            let apart = |r: [f64; 4]| {
+                let m = if config.shared_scene {
+                    SHARED_SCENE_MARGIN * (r[2] - r[0]).max(r[3] - r[1])
+                } else {
+                    0.0
+                };
+                [r[0] - m, r[1] - m, r[2] + m, r[3] + m]
+            };
+            let g = apart(b);
+            let overlaps = placed.iter().any(|(_, _, o, _)| {
+                let o = apart(*o);
+                g[0] < o[2] && o[0] < g[2] && g[1] < o[3] && o[1] < g[3]
+            });
             // Markers stay whole inside the image; a camera placement that never fits (a marker
             // larger than the view) is kept partly outside on the last try rather than dropped.
             let last_try = attempt == 29 && config.mode == Mode::Camera;
@@ -376,8 +392,14 @@ pub fn synthesize_mixed(
         canvas = distort_canvas(&canvas, &lens);
         applied.barrel_k1 = Some(k1);
     }
-    applied.noise_sigma = draw(&mut rng, aug.noise_sigma);
-    let mut noise_rng = config.noise_seed.map(ChaCha8Rng::seed_from_u64);
+    // A shared scene's noise has a stream of its own too: whether a motion blur was drawn (a
+    // swept value) must not change the noise of the scene.
+    let mut shared_noise = config.shared_scene.then(|| stream(3));
+    applied.noise_sigma = draw(shared_noise.as_mut().unwrap_or(&mut rng), aug.noise_sigma);
+    let mut noise_rng = config
+        .noise_seed
+        .map(ChaCha8Rng::seed_from_u64)
+        .or(shared_noise);
     augment::noise(
         &mut canvas,
         noise_rng.as_mut().unwrap_or(&mut rng),

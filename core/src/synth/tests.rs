@@ -38,6 +38,26 @@ fn a_shared_scene_shows_every_family_the_same_poses_light_and_noise() {
     }
 }
 
+#[test]
+fn in_a_shared_scene_a_still_value_and_a_one_pixel_blur_render_alike() {
+    // A motion sweep's still values draw no blur; the rest of the scene must not notice.
+    let mut still = SynthConfig::new(Mode::Camera);
+    still.markers = [1, 1];
+    still.augment.noise_sigma = [4.0, 9.0];
+    still.augment.motion_blur_probability = 0.0;
+    still.shared_scene = true;
+    let mut one_pixel = still.clone();
+    one_pixel.augment.motion_blur_probability = 1.0;
+    one_pixel.augment.motion_blur_length = [1, 1];
+    let f = family("apriltag-36h11");
+    let (a, b) = (
+        synthesize(&f, &still, 3).unwrap(),
+        synthesize(&f, &one_pixel, 3).unwrap(),
+    );
+    assert_eq!(a.truth.applied.noise_sigma, b.truth.applied.noise_sigma);
+    assert!(a.image == b.image, "the noise changed with the blur draw");
+}
+
 /// Darkness-weighted centroid of every visible dot of a RuneTag rendered by the camera, against
 /// the ground truth: the truth sits on the rendered keypoints, with and without barrel distortion.
 fn mean_dot_error(k1: Option<f64>, view_deg: f64) -> (f64, usize) {
