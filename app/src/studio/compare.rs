@@ -7,10 +7,11 @@
 use super::families::Origin;
 use super::train::attached_model;
 use super::Studio;
+use egui::DragValue;
 use egui_plot::{Legend, Line, Plot, PlotPoints};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
-use tagsmith::detect::stage2::{shipped_model, Stage2};
+use tagsmith::detect::stage2::Stage2;
 use tagsmith::detect::{BenchDetector, Detector};
 use tagsmith::eval::designs::{detector_for, DesignReport, DesignRun, WorstCase};
 use tagsmith::eval::scenario::{Condition, Scenario, Sweep};
@@ -255,11 +256,9 @@ fn load_chosen(studio: &Studio) -> Result<Vec<(Family, Stage2)>, String> {
             Some(file) => {
                 Stage2::load(&attached_model(file), &family).map_err(|e| e.to_string())?
             }
-            None => {
-                let bytes = shipped_model(name).ok_or(format!("{name} has no shipped weights"))?;
-                Stage2::from_bytes(bytes, &format!("shipped weights of {name}"), &family)
-                    .map_err(|e| e.to_string())?
-            }
+            None => Stage2::shipped(&family)
+                .ok_or(format!("{name} has no shipped weights"))?
+                .map_err(|e| e.to_string())?,
         };
         out.push((family, stage2));
     }
@@ -358,32 +357,22 @@ fn settings(studio: &mut Studio, ui: &mut egui::Ui) {
         egui::Grid::new("compare-scenario")
             .num_columns(2)
             .show(ui, |ui| {
-                let label = ui.label("Scene name");
-                ui.text_edit_singleline(&mut s.name).labelled_by(label.id);
-                ui.end_row();
-                let label = ui.label("Print size (mm)");
-                ui.add(egui::DragValue::new(&mut s.side_mm).range(1.0..=1000.0))
-                    .labelled_by(label.id);
-                ui.end_row();
-                let label = ui.label("Camera width (px)");
-                ui.add(egui::DragValue::new(&mut s.camera.width).range(16..=8192))
-                    .labelled_by(label.id);
-                ui.end_row();
-                let label = ui.label("Camera height (px)");
-                ui.add(egui::DragValue::new(&mut s.camera.height).range(16..=8192))
-                    .labelled_by(label.id);
-                ui.end_row();
-                let label = ui.label("Field of view (° diagonal)");
+                value_row(ui, "Scene name", egui::TextEdit::singleline(&mut s.name));
+                value_row(
+                    ui,
+                    "Print size (mm)",
+                    DragValue::new(&mut s.side_mm).range(1.0..=1000.0),
+                );
+                let width = DragValue::new(&mut s.camera.width).range(16..=8192);
+                value_row(ui, "Camera width (px)", width);
+                let height = DragValue::new(&mut s.camera.height).range(16..=8192);
+                value_row(ui, "Camera height (px)", height);
                 let mut fov = s.camera.fov_deg.unwrap_or(70.0);
-                let changed = ui
-                    .add(egui::DragValue::new(&mut fov).range(2.0..=178.0))
-                    .labelled_by(label.id)
-                    .changed();
-                if changed {
+                let fov_drag = DragValue::new(&mut fov).range(2.0..=178.0);
+                if value_row(ui, "Field of view (° diagonal)", fov_drag).changed() {
                     s.camera.fov_deg = Some(fov);
                     s.camera.focal_px = None;
                 }
-                ui.end_row();
                 range_row(ui, "Distance (m)", &mut s.distance_m, 0.01..=100.0, 0.01);
                 range_row(ui, "View angle (°)", &mut s.angle_deg, 0.0..=85.0, 1.0);
                 range_row(ui, "Blur sigma (px)", &mut s.blur_px, 0.0..=20.0, 0.1);
@@ -410,10 +399,8 @@ fn settings(studio: &mut Studio, ui: &mut egui::Ui) {
                     ui.radio_value(&mut s.background, BackgroundKind::Plain, "plain wall");
                 });
                 ui.end_row();
-                let label = ui.label("Markers per image");
-                ui.add(egui::DragValue::new(&mut s.markers_per_image).range(1..=20))
-                    .labelled_by(label.id);
-                ui.end_row();
+                let markers = DragValue::new(&mut s.markers_per_image).range(1..=20);
+                value_row(ui, "Markers per image", markers);
                 let sweep = ui.label("Sweep");
                 ui.horizontal(|ui| {
                     egui::ComboBox::from_id_salt("compare-sweep")
@@ -430,14 +417,12 @@ fn settings(studio: &mut Studio, ui: &mut egui::Ui) {
                         .labelled_by(label.id);
                 });
                 ui.end_row();
-                let label = ui.label("Scenes per value");
-                ui.add(egui::DragValue::new(&mut s.scenes).range(1..=1000))
-                    .labelled_by(label.id);
-                ui.end_row();
-                let label = ui.label("Seed");
-                ui.add(egui::DragValue::new(&mut s.seed))
-                    .labelled_by(label.id);
-                ui.end_row();
+                value_row(
+                    ui,
+                    "Scenes per value",
+                    DragValue::new(&mut s.scenes).range(1..=1000),
+                );
+                value_row(ui, "Seed", DragValue::new(&mut s.seed));
             });
     });
     ui.horizontal(|ui| {
@@ -463,6 +448,14 @@ fn settings(studio: &mut Studio, ui: &mut egui::Ui) {
     if let Some(e) = &studio.compare.error {
         ui.colored_label(ui.visuals().error_fg_color, e);
     }
+}
+
+/// A grid row: the label, and the widget named by it (for screen readers and tests).
+fn value_row(ui: &mut egui::Ui, label: &str, widget: impl egui::Widget) -> egui::Response {
+    let label = ui.label(label);
+    let response = ui.add(widget).labelled_by(label.id);
+    ui.end_row();
+    response
 }
 
 fn range_row(

@@ -477,13 +477,7 @@ fn crop_around(image: &GrayImage, corners: &[[f64; 2]; 4]) -> (GrayImage, [f64; 
         clamp(b[2] + margin, image.width).max(x0 + 1),
         clamp(b[3] + margin, image.height).max(y0 + 1),
     );
-    let (w, h) = (x1 - x0, y1 - y0);
-    let mut pixels = Vec::with_capacity((w * h) as usize);
-    for y in y0..y1 {
-        let start = (y * image.width + x0) as usize;
-        pixels.extend_from_slice(&image.pixels[start..start + w as usize]);
-    }
-    (GrayImage::from_vec(w, h, pixels), [x0 as f64, y0 as f64])
+    (image.crop(x0, y0, x1 - x0, y1 - y0), [x0 as f64, y0 as f64])
 }
 
 /// One family's scores at one swept value.

@@ -209,17 +209,15 @@ pub fn generate(
             max: MAX_SET_IMAGES,
         });
     }
-    let images_dir = dir.join("images");
-    let created =
-        crate::io::CreatedDir::create(&images_dir).map_err(|source| EvalError::Write {
-            path: images_dir,
-            source,
-        })?;
     let camera =
         Camera::from_diagonal_fov(1280, 960, 98.0).expect("the protocol's camera is valid");
-    let set = render_set(family, &plan(params), camera, params, dir)?;
-    created.keep();
-    Ok(set)
+    render_set(
+        family,
+        &plan(params),
+        camera,
+        (params.side_m, params.seed),
+        dir,
+    )
 }
 
 /// Renders a scenario's scenes as a benchmark set into `dir` (as [`generate`] does the protocol):
@@ -236,32 +234,28 @@ pub fn generate_scenario(
             message: e.message,
         });
     }
+    let plan: Vec<_> = (scenario.scenes().into_iter())
+        .map(|s| (s.group, s.config, s.seed))
+        .collect();
+    let side_and_seed = (scenario.side_mm / 1000.0, scenario.seed);
+    render_set(family, &plan, scenario.camera(), side_and_seed, dir)
+}
+
+/// Renders `plan` into `dir/images/` and writes `dir/set.json`; if rendering or writing fails,
+/// the folders this call created are removed (folders that were there before are left).
+fn render_set(
+    family: &Family,
+    plan: &[(Group, SynthConfig, u64)],
+    camera: Camera,
+    (side_m, seed): (f64, u64),
+    dir: &Path,
+) -> Result<BenchmarkSet, EvalError> {
     let images_dir = dir.join("images");
     let created =
         crate::io::CreatedDir::create(&images_dir).map_err(|source| EvalError::Write {
             path: images_dir,
             source,
         })?;
-    let plan: Vec<_> = (scenario.scenes().into_iter())
-        .map(|s| (s.group, s.config, s.seed))
-        .collect();
-    let params = SetParams {
-        side_m: scenario.side_mm / 1000.0,
-        seed: scenario.seed,
-        ..SetParams::default()
-    };
-    let set = render_set(family, &plan, scenario.camera(), &params, dir)?;
-    created.keep();
-    Ok(set)
-}
-
-fn render_set(
-    family: &Family,
-    plan: &[(Group, SynthConfig, u64)],
-    camera: Camera,
-    params: &SetParams,
-    dir: &Path,
-) -> Result<BenchmarkSet, EvalError> {
     let images = plan
         .par_iter()
         .enumerate()
@@ -284,15 +278,16 @@ fn render_set(
         .collect::<Result<Vec<_>, EvalError>>()?;
     let set = BenchmarkSet {
         family: family.name().to_string(),
-        side_m: params.side_m,
+        side_m,
         camera,
-        seed: params.seed,
+        seed,
         images,
     };
     let json = serde_json::to_string(&set).expect("a benchmark set serialises");
     let path = dir.join("set.json");
     crate::io::write_atomic(&path, json.as_bytes())
         .map_err(|source| EvalError::Write { path, source })?;
+    created.keep();
     Ok(set)
 }
 
