@@ -14,7 +14,7 @@ use std::sync::{Arc, Mutex};
 use tagsmith::detect::detector::FamilyReader;
 use tagsmith::detect::refine::RefineMode;
 use tagsmith::detect::stage1::Stage1;
-use tagsmith::detect::stage2::{shipped_families, shipped_model, Stage2};
+use tagsmith::detect::stage2::{shipped_families, Stage2};
 use tagsmith::detect::{Found, Timings, TrackParams};
 use tagsmith::family::Family;
 use tagsmith::geometry::Camera;
@@ -37,7 +37,7 @@ fn load_stage2(family: &Family, model: Option<&PathBuf>) -> PyResult<Stage2> {
             Stage2::load(path, family).map_err(bad_input)
         }
         None => {
-            let bytes = shipped_model(family.name()).ok_or_else(|| {
+            let shipped = Stage2::shipped(family).ok_or_else(|| {
                 bad_input(format!(
                     "no weights are shipped for family {:?}; train them with `tagsmith train {} \
                      --stage keypoints` and pass models={{{:?}: \"path/to/model\"}}",
@@ -46,12 +46,7 @@ fn load_stage2(family: &Family, model: Option<&PathBuf>) -> PyResult<Stage2> {
                     family.name()
                 ))
             })?;
-            Stage2::from_bytes(
-                bytes,
-                &format!("shipped weights of {}", family.name()),
-                family,
-            )
-            .map_err(bad_input)
+            shipped.map_err(bad_input)
         }
     }
 }

@@ -718,22 +718,14 @@ fn annotation_names(images: &[PathBuf], dir: &Path, inputs: &Inputs) -> Vec<Opti
 fn load_model(model: Option<&Path>, family: &Family) -> Result<Stage2> {
     match model {
         Some(path) => Ok(Stage2::load(path, family)?),
-        None => {
-            let bytes =
-                tagsmith::detect::stage2::shipped_model(family.name()).ok_or_else(|| {
-                    bad_input!(
-                    "no weights are shipped for family {:?}; train them with `tagsmith train {} \
-                     --stage keypoints` and pass --model",
-                    family.name(),
-                    family.name()
-                )
-                })?;
-            Ok(Stage2::from_bytes(
-                bytes,
-                &format!("shipped weights of {}", family.name()),
-                family,
-            )?)
-        }
+        None => Ok(Stage2::shipped(family).ok_or_else(|| {
+            bad_input!(
+                "no weights are shipped for family {:?}; train them with `tagsmith train {} \
+                 --stage keypoints` and pass --model",
+                family.name(),
+                family.name()
+            )
+        })??),
     }
 }
 

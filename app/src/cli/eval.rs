@@ -334,7 +334,7 @@ fn design_weights(
     family: &tagsmith::family::Family,
     given: Option<&PathBuf>,
 ) -> Result<tagsmith::detect::stage2::Stage2> {
-    use tagsmith::detect::stage2::{shipped_model, Stage2};
+    use tagsmith::detect::stage2::Stage2;
     if let Some(path) = given {
         return Ok(Stage2::load(path, family)?);
     }
@@ -342,12 +342,8 @@ fn design_weights(
     if tagsmith::builtin::get(name).is_none() && beside.is_file() {
         return Ok(Stage2::load(&beside, family)?);
     }
-    match shipped_model(family.name()) {
-        Some(bytes) => Ok(Stage2::from_bytes(
-            bytes,
-            &format!("shipped weights of {}", family.name()),
-            family,
-        )?),
+    match Stage2::shipped(family) {
+        Some(shipped) => Ok(shipped?),
         None => Err(bad_input!(
             "{name}: no weights for {:?}; train them (the studio's Train panel saves them as {}) \
              or give --model {name}=MODEL",

@@ -24,7 +24,7 @@ use super::stage1::group::{nested, same_quad, Proposal};
 use super::stage1::pipeline::Search;
 use super::stage1::{ProposeOptions, Stage1};
 use super::stage2::model_file::ModelError;
-use super::stage2::{shipped_model, ReadOptions, Stage2, Stage2Result};
+use super::stage2::{ReadOptions, Stage2, Stage2Result};
 use super::{BenchDetector, Detection};
 use crate::family::Family;
 use crate::geometry::largest_corner_move;
@@ -205,10 +205,8 @@ impl FamilyReader {
 
     /// The family with its shipped stage-2 weights.
     pub fn shipped(family: Family) -> Result<Self, DetectorError> {
-        let bytes =
-            shipped_model(family.name()).ok_or(DetectorError::NoWeights(family.name().into()))?;
-        let name = format!("shipped model of {}", family.name());
-        let stage2 = Stage2::from_bytes(bytes, &name, &family)?;
+        let stage2 = Stage2::shipped(&family)
+            .ok_or_else(|| DetectorError::NoWeights(family.name().into()))??;
         Ok(Self::new(family, stage2))
     }
 }

@@ -125,6 +125,13 @@ impl Stage2 {
         Ok(Self::new(&net, header, family))
     }
 
+    /// The weights shipped for a built-in family; `None` when it has none.
+    pub fn shipped(family: &Family) -> Option<Result<Self, ModelError>> {
+        let bytes = super::shipped_model(family.name())?;
+        let name = format!("shipped weights of {}", family.name());
+        Some(Self::from_bytes(bytes, &name, family))
+    }
+
     pub fn from_bytes(bytes: &[u8], name: &str, family: &Family) -> Result<Self, ModelError> {
         let device = Device::flex();
         let (net, header) = model_file::from_bytes(bytes, name, family, &device)?;
