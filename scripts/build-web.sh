@@ -28,7 +28,7 @@ wasm-bindgen --target web --no-typescript --out-dir app/dist.tmp \
 wasm_bytes=$(wc -c < app/dist.tmp/tagsmith_bg.wasm)
 gzip_bytes=$(gzip -9 -c app/dist.tmp/tagsmith_bg.wasm | wc -c)
 echo "tagsmith_bg.wasm: $wasm_bytes bytes, $gzip_bytes gzipped"
-cp app/index.html app/dist.tmp/index.html
+cp app/index.html app/worker.js app/dist.tmp/
 # Swap the finished folder in whole, so a failed build never leaves a half-written dist.
 rm -rf app/dist && mv app/dist.tmp app/dist
 echo "built: $root/app/dist ($(du -sh app/dist | cut -f1); open it through a web server, e.g. python3 -m http.server -d app/dist)"

@@ -663,12 +663,20 @@ fn detect_sample(h: &mut Harness<'static, Studio>, sample: &str) {
     assert_eq!(h.state().panel, Panel::Detect);
     h.get_by_label(sample).click();
     h.run();
+    wait_for_detection(h);
+}
+
+/// Until the Detect panel's background detection is back.
+fn wait_for_detection(h: &mut Harness<'static, Studio>) {
+    run_until(h, "the detection", |s| {
+        !s.detect.is_detecting() && s.detect.result.is_some()
+    });
 }
 
 /// `tagsmith detect SAMPLE ARGS… --json` of this build: the detections file.
 /// How many markers the Detect panel lists.
 fn listed_count(h: &Harness<'static, Studio>) -> usize {
-    h.state().detect.result.as_ref().unwrap().found.len()
+    h.state().detect.result.as_ref().unwrap().markers.len()
 }
 
 /// How many markers `tagsmith detect SAMPLE ARGS` reports.
@@ -711,17 +719,20 @@ fn the_detect_panel_lists_what_the_cli_detects_on_a_sample() {
         .result
         .as_ref()
         .expect("detected on the sample")
-        .found
+        .markers
         .iter()
-        .map(|f| (f.family.clone(), f.marker.id, f.marker.corners))
+        .map(|m| {
+            let d = &m.detection;
+            (d.family.clone().unwrap(), d.id, d.corners)
+        })
         .collect();
     assert!(!listed.is_empty(), "the sample shows six ArUco markers");
     // Each marker's pose is drawn as axes from its centre (where its diagonals cross).
     let result = h.state().detect.result.as_ref().unwrap();
-    for (f, axes) in result.found.iter().zip(&result.axes) {
-        let [origin, ..] = axes.expect("every marker of the sample has a pose");
+    for m in &result.markers {
+        let [origin, ..] = m.axes.expect("every marker of the sample has a pose");
         let centre =
-            tagsmith::detect::stage1::targets::diagonal_crossing(&f.marker.corners).unwrap();
+            tagsmith::detect::stage1::targets::diagonal_crossing(&m.detection.corners).unwrap();
         let off = (origin[0] - centre[0]).hypot(origin[1] - centre[1]);
         assert!(off < 1.5, "axes {off:.2} px from the marker's centre");
     }
@@ -758,6 +769,41 @@ fn the_detect_panel_lists_what_the_cli_detects_on_a_sample() {
     );
 }
 
+/// Detect panel: the detection runs in the background. The frame that starts it comes back
+/// at once and says it is detecting; the window keeps drawing until the result is in.
+#[test]
+fn the_window_keeps_drawing_while_the_detector_runs() {
+    const SAMPLE: &str = "apriltag-36h11-swarmathon.jpg";
+    let s = setup();
+    let mut h = studio(&s);
+    h.get_by_label("Detect").click();
+    h.run();
+    h.get_by_label(SAMPLE).click();
+    let clock = Instant::now();
+    h.step();
+    let frame_ms = clock.elapsed().as_secs_f64() * 1e3;
+    assert!(h.state().detect.is_detecting());
+    h.step();
+    if h.state().detect.is_detecting() {
+        h.get_by_label("detecting…");
+    }
+    let mut frames = 0;
+    while h.state().detect.is_detecting() {
+        h.step();
+        frames += 1;
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    h.run();
+    let detection_ms = h.state().detect.result.as_ref().unwrap().time_ms;
+    assert!(
+        frame_ms < 0.5 * detection_ms,
+        "the frame that started it took {frame_ms:.0} ms, the detection {detection_ms:.0} ms"
+    );
+    assert!(frames > 1, "frames drew while it ran: {frames}");
+    assert!(h.query_by_label_contains("detecting…").is_none());
+    assert!(listed_count(&h) > 0);
+}
+
 /// Detect panel → "tiny markers": the detector runs again with stage 1 also on the image
 /// enlarged twice, and lists what `tagsmith detect --upsample` finds on the same photograph.
 #[test]
@@ -769,7 +815,8 @@ fn the_tiny_markers_switch_searches_as_detect_upsample_does() {
     let default = listed_count(&h);
     h.get_by_label("tiny markers").click();
     h.run();
-    assert!(h.state().detect.options_upsample());
+    wait_for_detection(&mut h);
+    assert!(h.state().detect.options().propose.upsample);
     let upsampled = listed_count(&h);
     assert!(upsampled >= default, "{upsampled} with, {default} without");
     assert_eq!(cli_count(SAMPLE, &["--upsample"]), upsampled);
@@ -784,11 +831,12 @@ fn the_steep_views_switch_searches_as_detect_no_outline_does() {
     let s = setup();
     let mut h = studio(&s);
     detect_sample(&mut h, SAMPLE);
-    assert!(h.state().detect.options_outline());
+    assert!(h.state().detect.options().propose.image_searches());
     assert_eq!(listed_count(&h), cli_count(SAMPLE, &[]));
     h.get_by_label("steep views").click();
     h.run();
-    assert!(!h.state().detect.options_outline());
+    wait_for_detection(&mut h);
+    assert!(!h.state().detect.options().propose.image_searches());
     assert_eq!(listed_count(&h), cli_count(SAMPLE, &["--no-outline"]));
 }
 
@@ -969,7 +1017,8 @@ fn the_test_scene_lists_each_familys_detection_with_its_error() {
 }
 
 /// Detection latency in the Detect panel against `tagsmith detect` on the same sample, both
-/// from this build: the panel's whole frame (click → image decoded, detected, drawn) and the
+/// from this build: the panel's time from the click to the result (image decoded, detected in
+/// the background, drawn) and the
 /// detector's own time, against the CLI's per-image time (process start and model loading
 /// excluded, as they are in the app after its first run). A benchmark (BENCHMARKS.md "Studio"):
 /// `cargo test --release -p tagsmith-studio --test studio -- --ignored latency --nocapture`.
@@ -990,6 +1039,7 @@ fn detect_latency_in_the_app_is_the_clis() {
         let clock = Instant::now();
         h.get_by_label(SAMPLE).click();
         h.run();
+        wait_for_detection(&mut h);
         frames.push(clock.elapsed().as_secs_f64() * 1e3);
         detector.push(h.state().detect.result.as_ref().unwrap().time_ms);
     }

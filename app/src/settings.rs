@@ -7,7 +7,7 @@ use tagsmith::detect::stage1::group::GroupOptions;
 use tagsmith::detect::stage2::ReadOptions;
 use tagsmith::detect::DetectorOptions;
 
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[cfg_attr(not(target_arch = "wasm32"), derive(clap::Args))]
 pub struct DetectorSettings {
     /// Stage-2 passes (the second starts from the first's keypoints, also when the first decodes

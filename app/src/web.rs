@@ -6,6 +6,11 @@ use wasm_bindgen::JsCast;
 
 pub fn start() {
     eframe::WebLogger::init(log::LevelFilter::Info).ok();
+    // The detection worker (app/worker.js) runs this same module.
+    if crate::studio::offload::web::in_worker() {
+        crate::studio::offload::web::serve_in_worker();
+        return;
+    }
     wasm_bindgen_futures::spawn_local(async {
         let canvas = web_sys::window()
             .and_then(|w| w.document())

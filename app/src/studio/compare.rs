@@ -21,21 +21,68 @@ use tagsmith::family::Family;
 pub const MAX_DESIGNS: usize = 4;
 
 /// What the run has produced so far, as the panel draws it.
-#[derive(Clone)]
+#[derive(Clone, serde::Serialize, serde::Deserialize)]
 pub struct Snapshot {
     pub report: DesignReport,
     pub worst: Vec<WorstCase>,
 }
 
-/// A run in progress. On the desktop it steps on a thread of its own and publishes a snapshot
-/// after each scene; a browser has no threads here, so there the panel steps it one scene a
-/// frame.
+/// A run in progress. On the desktop it steps on a thread of its own, in a browser in a web
+/// worker of its own ([`super::offload::web`]); either publishes a snapshot after each scene.
 struct Running {
     snapshot: Arc<Mutex<Option<Snapshot>>>,
     cancel: Arc<AtomicBool>,
     finished: Arc<Mutex<Option<Result<(), String>>>>,
+    /// Dropping it ends the run.
     #[cfg(target_arch = "wasm32")]
-    inline: Option<(DesignRun, Vec<Detector>)>,
+    worker: Option<super::offload::web::WebWorker>,
+}
+
+/// A comparison of built-in families with their shipped weights, as a browser's worker runs it.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub struct CompareRequest {
+    pub scenario: Scenario,
+    pub families: Vec<String>,
+}
+
+/// Runs `request` to its end, handing out the report after each scene.
+pub fn run_shipped(
+    request: CompareRequest,
+    mut publish: impl FnMut(Snapshot),
+) -> Result<(), String> {
+    let mut families = Vec::new();
+    for name in &request.families {
+        let family = match tagsmith::builtin::get(name) {
+            Some(family) => family.map_err(|e| e.to_string())?,
+            None => return Err(format!("{name} is not a built-in family")),
+        };
+        let stage2 = Stage2::shipped(&family)
+            .ok_or(format!("{name} has no shipped weights"))?
+            .map_err(|e| e.to_string())?;
+        families.push((family, stage2));
+    }
+    let (mut run, mut detectors) = prepare(request.scenario, families)?;
+    while !run.finished() {
+        publish(step(&mut run, &mut detectors)?);
+    }
+    Ok(())
+}
+
+/// The run and a detector per design.
+fn prepare(
+    scenario: Scenario,
+    families: Vec<(Family, Stage2)>,
+) -> Result<(DesignRun, Vec<Detector>), String> {
+    let mut detectors = Vec::new();
+    let mut designs = Vec::new();
+    for (family, stage2) in families {
+        let detector =
+            detector_for(family.clone(), stage2, &scenario).map_err(|e| e.to_string())?;
+        detectors.push(detector);
+        designs.push(family);
+    }
+    let run = DesignRun::new(scenario, designs).map_err(|e| e.to_string())?;
+    Ok((run, detectors))
 }
 
 pub struct CompareState {
@@ -106,17 +153,15 @@ impl CompareState {
     }
 
     /// Starts a run of the ticked families (found in `families`, each with its weights).
-    pub fn start(&mut self, families: Vec<(Family, Stage2)>) -> Result<(), String> {
+    pub fn start(
+        &mut self,
+        families: Vec<(Family, Stage2)>,
+        ctx: &egui::Context,
+    ) -> Result<(), String> {
         let scenario = self.scenario()?;
-        let mut detectors = Vec::new();
-        let mut designs = Vec::new();
-        for (family, stage2) in families {
-            let detector =
-                detector_for(family.clone(), stage2, &scenario).map_err(|e| e.to_string())?;
-            detectors.push(detector);
-            designs.push(family);
-        }
-        let run = DesignRun::new(scenario, designs).map_err(|e| e.to_string())?;
+        #[cfg(target_arch = "wasm32")]
+        let names: Vec<String> = families.iter().map(|(f, _)| f.name().to_string()).collect();
+        let (run, detectors) = prepare(scenario.clone(), families)?;
         let snapshot = Arc::new(Mutex::new(Some(Snapshot {
             report: run.report(),
             worst: Vec::new(),
@@ -129,12 +174,15 @@ impl CompareState {
         #[cfg(not(target_arch = "wasm32"))]
         {
             let (published, stop, ended) = (snapshot.clone(), cancel.clone(), finished.clone());
+            let repaint = ctx.clone();
             std::thread::spawn(move || {
                 let (mut run, mut detectors) = (run, detectors);
                 // A panic would otherwise leave the panel waiting for an end forever.
                 let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
                     while !run.finished() && !stop.load(Ordering::Relaxed) {
-                        step(&mut run, &mut detectors, &published)?;
+                        let next = step(&mut run, &mut detectors)?;
+                        *published.lock().unwrap_or_else(|p| p.into_inner()) = Some(next);
+                        repaint.request_repaint();
                     }
                     Ok(())
                 }))
@@ -149,11 +197,33 @@ impl CompareState {
         }
         #[cfg(target_arch = "wasm32")]
         {
+            use super::offload::web::{FromWorker, ToWorker, WebWorker};
+            // The worker builds its own run and detectors from the shipped weights; these
+            // checked that it can.
+            drop((run, detectors));
+            let (published, ended) = (snapshot.clone(), finished.clone());
+            let worker = WebWorker::spawn(ctx, move |message| match message {
+                FromWorker::Compared { snapshot, .. } => {
+                    *published.lock().unwrap_or_else(|p| p.into_inner()) = Some(snapshot)
+                }
+                FromWorker::Ended { outcome, .. } => {
+                    *ended.lock().unwrap_or_else(|p| p.into_inner()) = Some(outcome)
+                }
+                FromWorker::Failed(e) => {
+                    *ended.lock().unwrap_or_else(|p| p.into_inner()) = Some(Err(e))
+                }
+                _ => {}
+            })?;
+            let request = CompareRequest {
+                scenario,
+                families: names,
+            };
+            worker.post(1, &ToWorker::Compare(request), &[]);
             self.running = Some(Running {
                 snapshot,
                 cancel,
                 finished,
-                inline: Some((run, detectors)),
+                worker: Some(worker),
             });
         }
         Ok(())
@@ -168,17 +238,11 @@ impl CompareState {
     /// Takes what the run has published; returns a message once it ends.
     pub fn poll(&mut self) -> Option<Result<String, String>> {
         let running = self.running.as_mut()?;
+        // A worker cannot be asked to stop between scenes: cancelling ends it.
         #[cfg(target_arch = "wasm32")]
-        if let Some((run, detectors)) = running.inline.as_mut() {
-            let outcome = if running.cancel.load(Ordering::Relaxed) || run.finished() {
-                Some(Ok(()))
-            } else {
-                step(run, detectors, &running.snapshot).err().map(Err)
-            };
-            if let Some(outcome) = outcome {
-                *running.finished.lock().unwrap_or_else(|p| p.into_inner()) = Some(outcome);
-                running.inline = None;
-            }
+        if running.cancel.load(Ordering::Relaxed) && running.worker.take().is_some() {
+            let mut ended = running.finished.lock().unwrap_or_else(|p| p.into_inner());
+            ended.get_or_insert(Ok(()));
         }
         // The end is read before the last snapshot: the run publishes its snapshot before it
         // ends, so a snapshot taken after the end is the final one.
@@ -207,22 +271,17 @@ impl CompareState {
     }
 }
 
-/// One scene for every design, then the report so far published.
-fn step(
-    run: &mut DesignRun,
-    detectors: &mut [Detector],
-    snapshot: &Mutex<Option<Snapshot>>,
-) -> Result<(), String> {
+/// One scene for every design, then the report so far.
+fn step(run: &mut DesignRun, detectors: &mut [Detector]) -> Result<Snapshot, String> {
     let mut each: Vec<&mut dyn BenchDetector> = detectors
         .iter_mut()
         .map(|d| d as &mut dyn BenchDetector)
         .collect();
     run.step(&mut each).map_err(|e| e.to_string())?;
-    *snapshot.lock().unwrap_or_else(|p| p.into_inner()) = Some(Snapshot {
+    Ok(Snapshot {
         report: run.report(),
         worst: run.worst_cases().to_vec(),
-    });
-    Ok(())
+    })
 }
 
 /// The families that detect, by name, with where their weights come from.
@@ -439,7 +498,7 @@ fn settings(studio: &mut Studio, ui: &mut egui::Ui) {
                 );
             }
         } else if ui.button("Run comparison").clicked() {
-            let started = load_chosen(studio).and_then(|f| studio.compare.start(f));
+            let started = load_chosen(studio).and_then(|f| studio.compare.start(f, ui.ctx()));
             if let Err(e) = started {
                 studio.compare.error = Some(e);
             }

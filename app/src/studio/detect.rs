@@ -3,10 +3,11 @@
 //! category and IDs drawn over it, a table per marker, and the detections saved as the CLI's JSON
 //! or the annotated image as PNG. Results update as the families or the threshold change.
 //!
-//! The web build runs the same detector with the shipped weights (burn's CPU backend compiled to
-//! wasm), on the UI thread: a browser page has one thread unless the app ships a worker, and a
-//! detection there takes well under a second (BENCHMARKS.md "Studio"). A design's own model is a
-//! file next to its family file, so only the desktop offers it.
+//! Detection runs off the UI thread ([`super::offload`]): on a thread of its own on the desktop,
+//! in a web worker in a browser (burn's CPU backend compiled to wasm, the shipped weights), so
+//! the window keeps drawing while the networks run. A design's own model is a file next to its
+//! family file, so only the desktop offers it. The test scene and the video playback still run
+//! the detector on the UI thread.
 
 /// Sample photographs shipped in `assets/samples/` (sources and licences in its README).
 pub const SAMPLES: &[(&str, &[u8])] = &[
@@ -25,16 +26,17 @@ pub const SAMPLES: &[(&str, &[u8])] = &[
 ];
 
 use super::files::{OpenedFile, Purpose};
+use super::offload::{build_detector, shown, DetectRequest, Offload, Shown, Ticket};
 use super::preview::{category_colour, gray_image};
 use super::sequence::{Sequence, FRAMES};
 use super::Studio;
 use crate::settings::DetectorSettings;
 use egui::{Color32, Pos2, Rect, Stroke, Vec2};
 use tagsmith::detect::annotate::{annotate_all, Overlay};
-use tagsmith::detect::detector::FamilyReader;
-use tagsmith::detect::stage1::Stage1;
-use tagsmith::detect::stage2::{shipped_families, Stage2};
-use tagsmith::detect::{BenchDetector, DetectionsFile, Detector, Found, ImageDetections, Timings};
+use tagsmith::detect::stage2::shipped_families;
+use tagsmith::detect::{
+    BenchDetector, DetectionsFile, Detector, DetectorOptions, Found, ImageDetections, Timings,
+};
 use tagsmith::image::GrayImage;
 
 /// An image to detect on.
@@ -47,11 +49,11 @@ pub struct LoadedImage {
 
 /// The last detection: what was found and how long it took.
 pub struct DetectResult {
-    pub found: Vec<Found>,
-    /// Per marker found: its pose's axes in the image (origin, x, y, z ends), when posed.
-    pub axes: Vec<Option<[[f64; 2]; 4]>>,
+    pub markers: Vec<Shown>,
     pub timings: Timings,
     pub time_ms: f64,
+    /// The detector's name, as the detections file records it.
+    pub detector: String,
 }
 
 pub struct DetectState {
@@ -64,8 +66,12 @@ pub struct DetectState {
     pub settings: DetectorSettings,
     pub image: Option<LoadedImage>,
     pub result: Option<DetectResult>,
-    /// The loaded detector and the families it was built for.
+    /// The detector of the test scene and the video, and the families it was built for.
     detector: Option<(Vec<String>, Detector)>,
+    /// Where the opened image's detection runs, once the panel has been shown.
+    offload: Option<Offload>,
+    /// The request in flight and the image revision it was made for.
+    asked: Option<(Ticket, u64)>,
     stale: bool,
     revision: u64,
     pub scene: SceneSettings,
@@ -111,8 +117,7 @@ pub struct TestScene {
     pub family: String,
     pub image: GrayImage,
     pub truth: tagsmith::synth::MarkerTruth,
-    pub found: Option<Found>,
-    pub axes: Option<[[f64; 2]; 4]>,
+    pub found: Option<Shown>,
     /// Corner RMS (px), position (mm) and rotation (°) errors of the found marker.
     pub errors: Option<(f64, f64, f64)>,
     pub revision: u64,
@@ -127,6 +132,8 @@ impl Default for DetectState {
             image: None,
             result: None,
             detector: None,
+            offload: None,
+            asked: None,
             stale: false,
             revision: 0,
             scene: SceneSettings::default(),
@@ -137,18 +144,34 @@ impl Default for DetectState {
 }
 
 impl DetectState {
-    /// Whether the loaded detector searches the image enlarged twice too.
-    pub fn options_upsample(&self) -> bool {
-        self.detector
-            .as_ref()
-            .is_some_and(|(_, d)| d.options.propose.upsample)
+    /// The options the next detection runs with.
+    pub fn options(&self) -> DetectorOptions {
+        let mut options = DetectorOptions::default();
+        self.settings.apply(&mut options);
+        options
     }
 
-    /// Whether the loaded detector also reads the quads the image outlines.
-    pub fn options_outline(&self) -> bool {
-        self.detector
-            .as_ref()
-            .is_some_and(|(_, d)| d.options.propose.image_searches())
+    /// A detection of the opened image is running in the background, or due.
+    pub fn is_detecting(&self) -> bool {
+        self.asked.is_some() || (self.stale && self.image.is_some())
+    }
+
+    /// The ticked built-ins and, when ticked, the design with its model file.
+    fn request_families(
+        &self,
+    ) -> (
+        Vec<String>,
+        Option<(&tagsmith::family::Family, &std::path::Path)>,
+    ) {
+        let builtins = (self.families.iter())
+            .filter(|(_, on)| *on)
+            .map(|(f, _)| f.clone())
+            .collect();
+        let design = match &self.design {
+            Some((family, model, true)) => Some((family, model.as_path())),
+            _ => None,
+        };
+        (builtins, design)
     }
 
     fn chosen(&self) -> Vec<String> {
@@ -187,28 +210,13 @@ impl DetectState {
         }
     }
 
-    /// Builds the detector for the ticked families when they changed since the last build.
+    /// Builds the test scene's and the video's detector for the ticked families when they
+    /// changed since the last build.
     fn build_detector(&mut self) -> Result<(), String> {
         let chosen = self.chosen();
-        if chosen.is_empty() {
-            return Err("choose at least one family to detect".into());
-        }
         if self.detector.as_ref().is_none_or(|(f, _)| *f != chosen) {
-            let mut readers = Vec::new();
-            for (name, _) in self.families.iter().filter(|(_, on)| *on) {
-                let family = match tagsmith::builtin::get(name) {
-                    Some(Ok(f)) => f,
-                    Some(Err(e)) => return Err(e.to_string()),
-                    None => return Err(format!("{name} is not a built-in family")),
-                };
-                readers.push(FamilyReader::shipped(family).map_err(|e| e.to_string())?);
-            }
-            if let Some((family, model, true)) = &self.design {
-                let stage2 = Stage2::load(model, family).map_err(|e| e.to_string())?;
-                readers.push(FamilyReader::new(family.clone(), stage2));
-            }
-            let stage1 = Stage1::shipped().map_err(|e| e.to_string())?;
-            let detector = Detector::new(stage1, readers).map_err(|e| e.to_string())?;
+            let (builtins, design) = self.request_families();
+            let detector = build_detector(&builtins, design, &self.settings)?;
             self.detector = Some((chosen, detector));
         }
         let (_, detector) = self.detector.as_mut().expect("built above");
@@ -216,41 +224,62 @@ impl DetectState {
         Ok(())
     }
 
-    /// Runs the detector on the image if anything changed since the last run.
-    pub fn refresh(&mut self) -> Result<(), String> {
-        if !self.stale || self.image.is_none() {
+    /// Takes a finished detection of the opened image, and starts one when anything changed
+    /// since the last (one at a time: changes made meanwhile are detected when it is back).
+    pub fn refresh(&mut self, ctx: &egui::Context) -> Result<(), String> {
+        let offload = self.offload.get_or_insert_with(|| Offload::new(ctx));
+        if let Some((ticket, reply)) = offload.poll() {
+            let asked = self.asked.take();
+            let current = self.image.as_ref().map(|i| i.revision);
+            // A reply for an image since replaced is dropped.
+            if asked.is_some_and(|(t, revision)| t == ticket && Some(revision) == current) {
+                let detected = reply?;
+                let image = self.image.as_ref().expect("checked above");
+                // The browser check (scripts/web-detect.sh) reads this line from the console.
+                log::info!(
+                    "detected {} marker(s) in {} ({}×{}) in {:.1} ms ({})",
+                    detected.markers.len(),
+                    image.name,
+                    image.gray.width,
+                    image.gray.height,
+                    detected.time_ms,
+                    detected.timings,
+                );
+                self.result = Some(DetectResult {
+                    markers: detected.markers,
+                    timings: detected.timings,
+                    time_ms: detected.time_ms,
+                    detector: detected.detector,
+                });
+            }
+        }
+        if !self.stale || self.offload.as_ref().is_some_and(Offload::is_busy) {
             return Ok(());
         }
-        self.stale = false;
-        if let Err(e) = self.build_detector() {
-            self.result = None;
-            return Err(e);
-        }
-        let (Some(image), Some((_, detector))) = (&self.image, &self.detector) else {
+        let Some(image) = &self.image else {
             return Ok(());
         };
-        let clock = tagsmith::io::Stopwatch::start();
-        let (found, timings) = Detector::detect(detector, &image.gray);
-        let time_ms = clock.ms();
-        // The browser check (scripts/web-detect.sh) reads this line from the console.
-        log::info!(
-            "detected {} marker(s) in {} ({}×{}) in {time_ms:.1} ms ({timings})",
-            found.len(),
-            image.name,
-            image.gray.width,
-            image.gray.height,
-        );
-        let camera = detector.camera_for(&image.gray);
-        let axes = found
-            .iter()
-            .map(|f| pose_axes(detector, f, camera.as_ref()))
-            .collect();
-        self.result = Some(DetectResult {
-            found,
-            axes,
-            timings,
-            time_ms,
-        });
+        self.stale = false;
+        let (families, design) = self.request_families();
+        if families.is_empty() && design.is_none() {
+            self.result = None;
+            return Err("choose at least one family to detect".into());
+        }
+        let request = DetectRequest {
+            families,
+            design: design.map(|(f, m)| (f.spec().clone(), m.to_path_buf())),
+            settings: self.settings.clone(),
+            name: image.name.clone(),
+            width: image.gray.width,
+            height: image.gray.height,
+            pixels: image.gray.pixels.to_vec(),
+        };
+        let revision = image.revision;
+        // scripts/web-detect.sh times the page's frames from this line to the result's.
+        log::info!("detecting {} in the background", image.name);
+        let offload = self.offload.as_mut().expect("made above");
+        let ticket = offload.send(request);
+        self.asked = Some((ticket, revision));
         Ok(())
     }
 
@@ -307,18 +336,18 @@ impl DetectState {
             let found = found
                 .into_iter()
                 .find(|f| f.family == family.name() && f.marker.id == truth.id);
-            let axes = found
-                .as_ref()
-                .and_then(|f| pose_axes(detector, f, sample.truth.camera.as_ref()));
-            detector.camera = None;
             let errors = found.as_ref().map(|f| scene_errors(f, &truth));
+            let found = found.map(|f| {
+                let mut one = shown(detector, &[f], sample.truth.camera.as_ref());
+                one.remove(0)
+            });
+            detector.camera = None;
             self.revision += 1;
             self.scenes.push(TestScene {
                 family: family.name().to_string(),
                 image: sample.image,
                 truth,
                 found,
-                axes,
                 errors,
                 revision: self.revision,
             });
@@ -329,13 +358,12 @@ impl DetectState {
     /// The detections in the CLI's `--json` format.
     pub fn detections_file(&self) -> Option<DetectionsFile> {
         let (image, result) = (self.image.as_ref()?, self.result.as_ref()?);
-        let (_, detector) = self.detector.as_ref()?;
         Some(DetectionsFile {
-            detector: BenchDetector::name(detector),
+            detector: result.detector.clone(),
             images: vec![ImageDetections {
                 file: image.name.clone(),
                 time_ms: result.time_ms,
-                detections: result.found.iter().map(Found::detection).collect(),
+                detections: result.markers.iter().map(|m| m.detection.clone()).collect(),
                 timings: serde_json::to_value(result.timings).ok(),
             }],
         })
@@ -366,16 +394,15 @@ impl DetectState {
             sequence.frames.len()
         );
         let camera = detector.camera_for(&gray);
-        let axes = (frame.found.iter())
-            .map(|f| pose_axes(detector, f, camera.as_ref()))
-            .collect();
+        let markers = shown(detector, &frame.found, camera.as_ref());
+        let name_of_detector = BenchDetector::name(detector);
         self.set_image(name, gray);
         self.stale = false;
         self.result = Some(DetectResult {
-            found: frame.found,
-            axes,
+            markers,
             timings: frame.timings,
             time_ms,
+            detector: name_of_detector,
         });
         Ok(())
     }
@@ -390,21 +417,6 @@ impl DetectState {
         self.result = None;
         self.stale = true;
     }
-}
-
-/// The marker's axes, as long as its side, as the pose puts them in the image.
-fn pose_axes(
-    detector: &Detector,
-    f: &Found,
-    camera: Option<&tagsmith::geometry::Camera>,
-) -> Option<[[f64; 2]; 4]> {
-    let pose = f.marker.pose.as_ref()?;
-    let side = detector
-        .readers
-        .iter()
-        .find(|r| r.family.name() == f.family)?
-        .side_m;
-    Some(tagsmith::pose::axes_in_image(&pose.pose, camera?, side))
 }
 
 fn scene_errors(f: &Found, truth: &tagsmith::synth::MarkerTruth) -> (f64, f64, f64) {
@@ -596,7 +608,7 @@ pub fn show(studio: &mut Studio, ui: &mut egui::Ui, ctx: &egui::Context) {
             state.stale = true;
         }
     });
-    if let Err(e) = studio.detect.refresh() {
+    if let Err(e) = studio.detect.refresh(ctx) {
         studio.error(e);
     }
     egui::CollapsingHeader::new("Test scene")
@@ -604,15 +616,21 @@ pub fn show(studio: &mut Studio, ui: &mut egui::Ui, ctx: &egui::Context) {
         .show(ui, |ui| test_scene(studio, ui, ctx));
     sequence_controls(studio, ui, ctx);
     let state = &studio.detect;
+    if state.is_detecting() {
+        // No spinner: it would repaint every frame; the reply asks for the next frame itself.
+        ui.label("detecting…");
+    }
     let (Some(image), Some(result)) = (&state.image, &state.result) else {
-        ui.label("Open an image, drop one on the window, or pick a sample.");
+        if state.image.is_none() {
+            ui.label("Open an image, drop one on the window, or pick a sample.");
+        }
         return;
     };
     ui.horizontal(|ui| {
         ui.label(format!(
             "{}: {} marker(s) in {:.0} ms ({})",
             image.name,
-            result.found.len(),
+            result.markers.len(),
             result.time_ms,
             result.timings,
         ));
@@ -623,7 +641,7 @@ pub fn show(studio: &mut Studio, ui: &mut egui::Ui, ctx: &egui::Context) {
         save_json = ui.button("Save detections (JSON)…").clicked();
         save_png = ui.button("Save annotated image (PNG)…").clicked();
     });
-    table(ui, &result.found);
+    table(ui, &result.markers);
     let tex = studio
         .textures
         .get_or_make(ctx, "detect-image", image.revision, || {
@@ -633,7 +651,7 @@ pub fn show(studio: &mut Studio, ui: &mut egui::Ui, ctx: &egui::Context) {
         let size = Vec2::new(image.gray.width as f32, image.gray.height as f32);
         let scale = (ui.available_width() / size.x).min(1.5);
         let response = ui.image((tex.id(), size * scale));
-        draw_overlays(ui, response.rect, scale, &result.found, &result.axes);
+        draw_overlays(ui, response.rect, scale, &result.markers);
     }
     if save_json {
         save_detections(studio);
@@ -699,7 +717,7 @@ fn test_scene(studio: &mut Studio, ui: &mut egui::Ui, ctx: &egui::Context) {
                 match (&scene.found, scene.errors) {
                     (Some(f), Some((c, p, r))) => ui.label(format!(
                         "found #{}: corners {c:.2} px RMS, position {p:.1} mm, rotation {r:.2}°",
-                        f.marker.id
+                        f.detection.id
                     )),
                     _ => ui.label(format!("#{} not found", scene.truth.id)),
                 };
@@ -711,20 +729,14 @@ fn test_scene(studio: &mut Studio, ui: &mut egui::Ui, ctx: &egui::Context) {
                     let size = Vec2::new(scene.image.width as f32, scene.image.height as f32);
                     let scale = 0.6;
                     let response = ui.image((tex.id(), size * scale));
-                    draw_overlays(
-                        ui,
-                        response.rect,
-                        scale,
-                        scene.found.as_slice(),
-                        std::slice::from_ref(&scene.axes),
-                    );
+                    draw_overlays(ui, response.rect, scale, scene.found.as_slice());
                 }
             });
         }
     });
 }
 
-fn table(ui: &mut egui::Ui, found: &[Found]) {
+fn table(ui: &mut egui::Ui, markers: &[Shown]) {
     egui::Grid::new("detections")
         .striped(true)
         .num_columns(8)
@@ -742,27 +754,28 @@ fn table(ui: &mut egui::Ui, found: &[Found]) {
                 ui.strong(head);
             }
             ui.end_row();
-            for f in found {
-                let m = &f.marker;
-                ui.label(f.family.as_str());
-                ui.label(m.id.to_string());
-                ui.label(m.corrected_errors.to_string());
-                match &m.pose {
-                    Some(p) => {
-                        ui.label(format!("{:.2}", p.rms_px));
-                        let t = 1000.0 * p.pose.translation;
+            for m in markers {
+                let d = &m.detection;
+                ui.label(d.family.as_deref().unwrap_or_default());
+                ui.label(d.id.to_string());
+                let scores = d.scores.as_ref();
+                ui.label(scores.map_or(0, |s| s.corrected_errors).to_string());
+                match (&d.pose, scores.and_then(|s| s.reprojection_rms_px)) {
+                    (Some(pose), Some(rms_px)) => {
+                        let pose = tagsmith::geometry::Pose::from(pose);
+                        ui.label(format!("{rms_px:.2}"));
+                        let t = 1000.0 * pose.translation;
                         ui.label(format!("{:.0}", t.norm()));
                         ui.label(format!("{:.1}, {:.1}, {:.1}", t[0], t[1], t[2]));
-                        ui.label(format!("{:.1}", tilt_deg(&p.pose)));
+                        ui.label(format!("{:.1}", tilt_deg(&pose)));
                     }
-                    None => {
+                    _ => {
                         for _ in 0..4 {
                             ui.label("–");
                         }
                     }
                 }
-                let refined = m.refinement.as_ref().is_some_and(|r| r.refined);
-                ui.label(if refined { "yes" } else { "no" });
+                ui.label(if m.refined { "yes" } else { "no" });
                 ui.end_row();
             }
         });
@@ -777,13 +790,7 @@ fn tilt_deg(pose: &tagsmith::geometry::Pose) -> f64 {
     cos.clamp(-1.0, 1.0).acos().to_degrees()
 }
 
-fn draw_overlays(
-    ui: &egui::Ui,
-    rect: Rect,
-    scale: f32,
-    found: &[Found],
-    axes: &[Option<[[f64; 2]; 4]>],
-) {
+fn draw_overlays(ui: &egui::Ui, rect: Rect, scale: f32, markers: &[Shown]) {
     let painter = ui.painter_at(rect);
     let at = |p: [f64; 2]| {
         // Pixel centres at whole coordinates: pixel 0 covers [0, 1) on screen.
@@ -796,22 +803,22 @@ fn draw_overlays(
         let points: Vec<Pos2> = q.iter().map(|&p| at(p)).collect();
         painter.add(egui::Shape::closed_line(points, Stroke::new(1.5, colour)));
     };
-    for (i, f) in found.iter().enumerate() {
-        outline(&f.proposal.corners, Color32::from_rgb(255, 220, 0));
-        outline(&f.marker.corners, Color32::from_rgb(0, 200, 60));
-        painter.circle_stroke(at(f.marker.corners[0]), 5.0, Stroke::new(1.5, Color32::RED));
-        for k in &f.marker.keypoints {
+    for m in markers {
+        let d = &m.detection;
+        outline(&m.roi, Color32::from_rgb(255, 220, 0));
+        outline(&d.corners, Color32::from_rgb(0, 200, 60));
+        painter.circle_stroke(at(d.corners[0]), 5.0, Stroke::new(1.5, Color32::RED));
+        for k in &d.keypoints {
             painter.circle_filled(at([k.x, k.y]), 2.0, category_colour(k.category));
         }
         // The ID above the marker, clear of the axes drawn from its centre.
-        let top = f
-            .marker
+        let top = d
             .corners
             .iter()
             .copied()
             .min_by(|a, b| a[1].total_cmp(&b[1]))
             .unwrap_or_default();
-        if let Some(Some([origin, ends @ ..])) = axes.get(i) {
+        if let Some([origin, ends @ ..]) = &m.axes {
             // x red, y green, z blue: the usual colours of a pose's axes.
             let colours = [
                 Color32::from_rgb(255, 40, 40),
@@ -825,7 +832,7 @@ fn draw_overlays(
         painter.text(
             at(top) - Vec2::new(0.0, 4.0),
             egui::Align2::CENTER_BOTTOM,
-            format!("#{}", f.marker.id),
+            format!("#{}", d.id),
             egui::FontId::proportional(14.0),
             Color32::from_rgb(255, 60, 200),
         );
@@ -857,7 +864,15 @@ fn save_annotated(studio: &mut Studio) {
     let (Some(image), Some(result)) = (&state.image, &state.result) else {
         return;
     };
-    let overlays: Vec<Overlay> = result.found.iter().map(Found::overlay).collect();
+    let overlays: Vec<Overlay> = (result.markers.iter())
+        .map(|m| Overlay {
+            roi: &m.roi,
+            corners: Some(&m.detection.corners),
+            keypoints: (m.detection.keypoints.iter())
+                .map(|k| (k.x, k.y, k.category))
+                .collect(),
+        })
+        .collect();
     let name = format!("{}.annotated.png", stem(&image.name));
     let saved =
         annotate_all(&image.gray, &overlays).and_then(|png| studio.files.save_as(&name, &png));

@@ -10,6 +10,7 @@ pub mod detect;
 pub mod families;
 pub mod files;
 pub mod job;
+pub mod offload;
 pub mod preview;
 pub mod print;
 pub mod sequence;

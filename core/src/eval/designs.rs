@@ -24,7 +24,7 @@ use serde::{Deserialize, Serialize};
 pub const WORST_KEPT: usize = 4;
 
 /// A marker read badly or not at all, cut out of its scene.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct WorstCase {
     pub family: usize,
     pub scene: usize,

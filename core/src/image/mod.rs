@@ -139,6 +139,39 @@ pub fn bilinear(width: u32, height: u32, x: f32, y: f32, at: impl Fn(usize) -> f
     )
 }
 
+/// An image crosses a message boundary (a page and its worker) as its size and row-major bytes.
+impl serde::Serialize for GrayImage {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeStruct;
+        let mut fields = s.serialize_struct("GrayImage", 3)?;
+        fields.serialize_field("width", &self.width)?;
+        fields.serialize_field("height", &self.height)?;
+        fields.serialize_field("pixels", &*self.pixels)?;
+        fields.end()
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for GrayImage {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        #[derive(serde::Deserialize)]
+        struct Raw {
+            width: u32,
+            height: u32,
+            pixels: Vec<u8>,
+        }
+        let raw = Raw::deserialize(d)?;
+        if raw.pixels.len() as u64 != u64::from(raw.width) * u64::from(raw.height) {
+            return Err(serde::de::Error::custom(format!(
+                "{} bytes for a {}×{} image",
+                raw.pixels.len(),
+                raw.width,
+                raw.height
+            )));
+        }
+        Ok(Self::from_vec(raw.width, raw.height, raw.pixels))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -160,5 +193,17 @@ mod tests {
         assert!((luminance(1.0, 1.0, 1.0) - 1.0).abs() < 1e-6);
         assert!(luminance(0.0, 1.0, 0.0) > luminance(1.0, 0.0, 0.0));
         assert!(luminance(1.0, 0.0, 0.0) > luminance(0.0, 0.0, 1.0));
+    }
+
+    #[test]
+    fn an_image_round_trips_through_json_and_a_wrong_size_is_refused() {
+        let image = GrayImage::from_vec(3, 2, vec![0, 1, 2, 253, 254, 255]);
+        let json = serde_json::to_string(&image).unwrap();
+        assert_eq!(serde_json::from_str::<GrayImage>(&json).unwrap(), image);
+        let short = r#"{"width":3,"height":2,"pixels":[0,1,2]}"#;
+        let e = serde_json::from_str::<GrayImage>(short)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("3 bytes for a 3×2 image"), "{e}");
     }
 }

@@ -33,7 +33,7 @@ use crate::image::GrayImage;
 use crate::io::Stopwatch;
 use read::Batch;
 use reconcile::{reconcile, Evidence, Rounds};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use sources::{AcceptParams, RefitParams, Source, SourceParams, DEFAULT_SOURCES, SOURCES};
 
 /// One family's stage 2 and the marker size its poses assume.
@@ -81,7 +81,7 @@ impl Default for DetectorOptions {
 }
 
 /// Where an image's time went, by phase and by proposal source.
-#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct Timings {
     /// Stage 1 on the image and every image search.
     pub propose_ms: f64,
@@ -133,7 +133,7 @@ impl std::fmt::Display for Timings {
 }
 
 /// What one proposal source cost and gave in an image.
-#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct SourceTally {
     /// Its own search's time (stage 1 on the whole image for [`Source::Stage1`]).
     pub propose_ms: f64,
