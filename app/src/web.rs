@@ -22,9 +22,8 @@ pub fn start() {
                 canvas,
                 eframe::WebOptions::default(),
                 Box::new(|cc| {
-                    let mut app = StudioApp::new(cc, Box::new(WebFiles::default()));
-                    open_from_address(&mut app);
-                    Ok(Box::new(app))
+                    let app = StudioApp::new(cc, Box::new(WebFiles::default()));
+                    Ok(Box::new(FollowsAddress::new(app, &cc.egui_ctx)))
                 }),
             )
             .await;
@@ -34,13 +33,63 @@ pub fn start() {
     });
 }
 
-/// `…/#detect=SAMPLE` opens the Detect panel on that shipped sample: a link that shows the
+/// The studio, following the page's address: `…/#detect=SAMPLE` opens the Detect panel on that
+/// shipped sample, at start and whenever the address changes to it. A link that shows the
 /// detector at work, and how scripts/web-detect.sh measures it in headless Chromium.
-fn open_from_address(app: &mut StudioApp) {
-    let hash = web_sys::window()
+struct FollowsAddress {
+    app: StudioApp,
+    seen: String,
+    _on_change: wasm_bindgen::closure::Closure<dyn FnMut()>,
+}
+
+impl FollowsAddress {
+    fn new(mut app: StudioApp, ctx: &egui::Context) -> Self {
+        let seen = address_hash();
+        open_from_address(&mut app, &seen);
+        let repaint = ctx.clone();
+        // A new address draws a frame, which reads it.
+        let on_change =
+            wasm_bindgen::closure::Closure::<dyn FnMut()>::new(move || repaint.request_repaint());
+        if let Some(window) = web_sys::window() {
+            window.set_onhashchange(Some(on_change.as_ref().unchecked_ref()));
+        }
+        Self {
+            app,
+            seen,
+            _on_change: on_change,
+        }
+    }
+}
+
+impl eframe::App for FollowsAddress {
+    fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
+        let hash = address_hash();
+        if hash != self.seen {
+            open_from_address(&mut self.app, &hash);
+            self.seen = hash;
+        }
+        eframe::App::ui(&mut self.app, ui, frame);
+    }
+
+    fn save(&mut self, storage: &mut dyn eframe::Storage) {
+        self.app.save(storage);
+    }
+
+    fn auto_save_interval(&self) -> std::time::Duration {
+        self.app.auto_save_interval()
+    }
+}
+
+fn address_hash() -> String {
+    web_sys::window()
         .and_then(|w| w.location().hash().ok())
-        .unwrap_or_default();
+        .unwrap_or_default()
+}
+
+fn open_from_address(app: &mut StudioApp, hash: &str) {
     if let Some(sample) = hash.strip_prefix("#detect=") {
+        // "#detect=NAME~2": the same sample again, as a new address.
+        let sample = sample.split('~').next().unwrap_or_default();
         if !crate::studio::detect::open_sample(&mut app.studio, sample) {
             app.studio
                 .error(format!("{sample}: no such sample (see assets/samples/)"));

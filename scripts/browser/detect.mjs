@@ -6,8 +6,9 @@
 // when the result is back (app/src/studio/detect.rs); T is the worker's own detection time.
 // Printed besides: the page's first paint, the wall time from hand-over to result, and the
 // animation frames in between (the UI thread must keep drawing while the worker detects).
-// Exits 1 when no detection is logged, or when MAX_FRAME_MS is set and a frame gap during the
-// detection is longer.
+// It detects twice: on opening (the worker loading the module meanwhile), then the same sample
+// again through a new address (#detect=NAME~2). Exits 1 when a detection is not logged, or when
+// MAX_FRAME_MS is set and a frame gap during the second detection is longer.
 import { chromium } from "playwright-core";
 
 const [url, out] = process.argv.slice(2);
@@ -57,6 +58,15 @@ try {
   }
   if (detected) {
     console.log(detected);
+    // The same sample again through a new address: the worker has loaded the module by now,
+    // so these frames show the page during a detection alone.
+    await page.evaluate(() => {
+      location.hash += "~2";
+    });
+    const again = Date.now() + 120_000;
+    while (lines.filter((l) => l.includes("detected ")).length < 2 && Date.now() < again) {
+      await page.waitForTimeout(200);
+    }
     // Let a few frames draw the result before the picture is taken.
     await page.waitForTimeout(1500);
     const { frames, logs, paint } = await page.evaluate(() => ({
@@ -64,8 +74,7 @@ try {
       logs: window.__logs,
       paint: performance.getEntriesByType("paint").map((e) => [e.name, e.startTime]),
     }));
-    const at = (text) => logs.find(([, line]) => line.includes(text))?.[0];
-    const [from, to] = [at("in the background"), at("detected ")];
+    const all = (text) => logs.filter(([, line]) => line.includes(text)).map(([t]) => t);
     const gaps = (list) => list.slice(1).map((t, i) => t - list[i]).sort((a, b) => a - b);
     const summary = (g) =>
       g.length === 0
@@ -76,16 +85,31 @@ try {
     const firstPaint = paint.find(([name]) => name === "first-contentful-paint") ?? paint[0];
     console.log(`first paint: ${firstPaint ? firstPaint[1].toFixed(0) + " ms" : "not reported"}`);
     console.log(`all frames: ${frames.length}; ${summary(gaps(frames))}`);
-    if (from !== undefined && to !== undefined) {
+    const [starts, ends] = [all("in the background"), all("detected ")];
+    const limit = Number(process.env.MAX_FRAME_MS);
+    for (const [k, label] of ["first (the worker starting)", "again (the worker ready)"].entries()) {
+      const [from, to] = [starts[k], ends[k]];
+      if (from === undefined || to === undefined) {
+        console.log(`${label}: not logged`);
+        failed ||= k === 1;
+        continue;
+      }
       // The frames from the one before the hand-over to the one after the result.
       const during = frames.filter((t, i) => frames[i + 1] >= from && (frames[i - 1] ?? 0) <= to);
       const g = gaps(during);
+      // Where the longest gaps fall, from the hand-over: a slow frame at the start or the end
+      // is the UI's own work (opening the image, drawing the result), not the detection.
+      const worst = during
+        .slice(1)
+        .map((t, i) => [t - during[i], during[i] - from])
+        .sort((a, b) => b[0] - a[0])
+        .slice(0, 3)
+        .map(([gap, at]) => `${gap.toFixed(0)} ms at ${at >= 0 ? "+" : ""}${at.toFixed(0)} ms`);
       console.log(
-        `during the detection (${(to - from).toFixed(0)} ms from hand-over to result): ` +
-          `${during.length} frames; ${summary(g)}`,
+        `${label}: ${(to - from).toFixed(0)} ms from hand-over to result, ${during.length} ` +
+          `frames; ${summary(g)}; longest gaps ${worst.join(", ")}`,
       );
-      const limit = Number(process.env.MAX_FRAME_MS);
-      if (limit > 0 && g.length > 0 && g[g.length - 1] > limit) {
+      if (k === 1 && limit > 0 && g.length > 0 && g[g.length - 1] > limit) {
         console.error(`a frame gap of ${g[g.length - 1].toFixed(1)} ms during the detection (limit ${limit} ms)`);
         failed = true;
       }

@@ -29,13 +29,11 @@ pub enum FromWorker {
     Ready,
     Detected {
         ticket: Ticket,
-        reply: Reply,
+        // Boxed: a detection's reply is several times larger than the other messages.
+        reply: Box<Reply>,
     },
     /// A comparison's report after another scene.
-    Compared {
-        ticket: Ticket,
-        snapshot: Snapshot,
-    },
+    Compared { ticket: Ticket, snapshot: Snapshot },
     /// A comparison's end.
     Ended {
         ticket: Ticket,
@@ -65,7 +63,10 @@ pub fn serve_in_worker() {
             match read_request(&message) {
                 Ok(ToWorker::Detect(request)) => {
                     let reply = server.borrow_mut().serve(request);
-                    post(&FromWorker::Detected { ticket, reply });
+                    post(&FromWorker::Detected {
+                        ticket,
+                        reply: Box::new(reply),
+                    });
                 }
                 Ok(ToWorker::Compare(request)) => {
                     let outcome = compare::run_shipped(request, |snapshot| {
@@ -75,7 +76,7 @@ pub fn serve_in_worker() {
                 }
                 Err(e) => post(&FromWorker::Detected {
                     ticket,
-                    reply: Err(e),
+                    reply: Box::new(Err(e)),
                 }),
             }
         });
@@ -117,9 +118,11 @@ struct Inner {
     waiting: RefCell<Vec<js_sys::Array>>,
     failed: RefCell<Option<String>>,
     // Kept alive with the worker: its handlers.
-    _on_message: RefCell<Option<Closure<dyn FnMut(web_sys::MessageEvent)>>>,
-    _on_error: RefCell<Option<Closure<dyn FnMut(web_sys::ErrorEvent)>>>,
+    _on_message: RefCell<Option<Handler<web_sys::MessageEvent>>>,
+    _on_error: RefCell<Option<Handler<web_sys::ErrorEvent>>>,
 }
+
+type Handler<Event> = Closure<dyn FnMut(Event)>;
 
 impl WebWorker {
     /// `worker.js` beside the page, as a module worker; `on_message` gets every reply (and
@@ -229,7 +232,8 @@ impl Drop for WebWorker {
     }
 }
 
-/// The Detect panel's worker: started with the first request, started again after a failure.
+/// The Detect panel's worker: started with the panel, so that it has loaded the module by the
+/// first request, and started again after a failure.
 pub struct Transport {
     ctx: egui::Context,
     worker: Option<WebWorker>,
@@ -238,30 +242,38 @@ pub struct Transport {
 
 impl Transport {
     pub fn start(ctx: egui::Context) -> Self {
-        Self {
+        let mut transport = Self {
             ctx,
             worker: None,
             replies: Rc::default(),
+        };
+        if let Err(e) = transport.spawn() {
+            log::error!("{e}");
         }
+        transport
+    }
+
+    fn spawn(&mut self) -> Result<(), String> {
+        let replies = self.replies.clone();
+        let worker = WebWorker::spawn(&self.ctx, move |message| match message {
+            FromWorker::Detected { ticket, reply } => {
+                replies.borrow_mut().push_back((ticket, *reply))
+            }
+            FromWorker::Failed(e) => replies.borrow_mut().push_back((0, Err(e))),
+            _ => {}
+        })?;
+        self.worker = Some(worker);
+        Ok(())
     }
 
     pub fn send(&mut self, ticket: Ticket, mut request: DetectRequest) {
         if self.worker.as_ref().is_none_or(|w| w.failure().is_some()) {
-            let replies = self.replies.clone();
-            let spawned = WebWorker::spawn(&self.ctx, move |message| match message {
-                FromWorker::Detected { ticket, reply } => {
-                    replies.borrow_mut().push_back((ticket, reply))
-                }
-                FromWorker::Failed(e) => replies.borrow_mut().push_back((0, Err(e))),
-                _ => {}
-            });
-            self.worker = match spawned {
-                Ok(w) => Some(w),
-                Err(e) => {
-                    self.replies.borrow_mut().push_back((ticket, Err(e)));
-                    None
-                }
-            };
+            self.worker = None;
+            self.replies.borrow_mut().clear();
+            if let Err(e) = self.spawn() {
+                self.replies.borrow_mut().push_back((ticket, Err(e)));
+                return;
+            }
         }
         let Some(worker) = &self.worker else {
             return;
