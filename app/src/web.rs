@@ -45,7 +45,7 @@ struct FollowsAddress {
 impl FollowsAddress {
     fn new(mut app: StudioApp, ctx: &egui::Context) -> Self {
         let seen = address_hash();
-        open_from_address(&mut app, &seen);
+        open_from_address(&mut app, &seen, ctx);
         let repaint = ctx.clone();
         // A new address draws a frame, which reads it.
         let on_change =
@@ -65,7 +65,7 @@ impl eframe::App for FollowsAddress {
     fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
         let hash = address_hash();
         if hash != self.seen {
-            open_from_address(&mut self.app, &hash);
+            open_from_address(&mut self.app, &hash, ui.ctx());
             self.seen = hash;
         }
         eframe::App::ui(&mut self.app, ui, frame);
@@ -86,7 +86,13 @@ fn address_hash() -> String {
         .unwrap_or_default()
 }
 
-fn open_from_address(app: &mut StudioApp, hash: &str) {
+fn open_from_address(app: &mut StudioApp, hash: &str, ctx: &egui::Context) {
+    if let Some(query) = hash.strip_prefix("#compare=") {
+        if let Err(e) = compare_from_address(app, query, ctx) {
+            log::error!("{e}");
+            app.studio.error(e);
+        }
+    }
     if let Some(sample) = hash.strip_prefix("#detect=") {
         // "#detect=NAME~2": the same sample again, as a new address.
         let sample = sample.split('~').next().unwrap_or_default();
@@ -95,4 +101,32 @@ fn open_from_address(app: &mut StudioApp, hash: &str) {
                 .error(format!("{sample}: no such sample (see assets/samples/)"));
         }
     }
+}
+
+/// `#compare=FAMILY,FAMILY[&scenes=N]`: the Compare panel runs the form's scenario for those
+/// families (N scenes per swept value), in its worker; how scripts/web-compare.sh checks it.
+fn compare_from_address(
+    app: &mut StudioApp,
+    query: &str,
+    ctx: &egui::Context,
+) -> Result<(), String> {
+    let mut parts = query.split('&');
+    let families: Vec<String> = (parts.next().unwrap_or_default().split(','))
+        .filter(|f| !f.is_empty())
+        .map(str::to_string)
+        .collect();
+    let studio = &mut app.studio;
+    for part in parts {
+        match part.split_once('=') {
+            Some(("scenes", n)) => {
+                studio.compare.scenario.scenes = n
+                    .parse()
+                    .map_err(|_| format!("#compare: scenes={n} is not a count"))?;
+            }
+            _ => return Err(format!("#compare: {part:?} is not scenes=N")),
+        }
+    }
+    studio.compare.chosen = families;
+    studio.panel = crate::studio::Panel::Compare;
+    crate::studio::compare::run_chosen(studio, ctx)
 }

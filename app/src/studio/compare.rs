@@ -14,6 +14,7 @@ use std::sync::{Arc, Mutex};
 use tagsmith::detect::stage2::Stage2;
 use tagsmith::detect::{BenchDetector, Detector};
 use tagsmith::eval::designs::{detector_for, DesignReport, DesignRun, WorstCase};
+use tagsmith::eval::plot::COLOURS as PALETTE;
 use tagsmith::eval::scenario::{Condition, Scenario, Sweep};
 use tagsmith::family::Family;
 
@@ -324,11 +325,29 @@ fn load_chosen(studio: &Studio) -> Result<Vec<(Family, Stage2)>, String> {
     Ok(out)
 }
 
+/// Runs the comparison the form describes for the ticked families: the Run button, and a link
+/// in the browser (`#compare=…`).
+pub fn run_chosen(studio: &mut Studio, ctx: &egui::Context) -> Result<(), String> {
+    let chosen = load_chosen(studio)?;
+    studio.compare.start(chosen, ctx)?;
+    log::info!(
+        "comparing {} in the background",
+        studio.compare.chosen.join(", ")
+    );
+    Ok(())
+}
+
 pub fn show(studio: &mut Studio, ui: &mut egui::Ui, ctx: &egui::Context) {
     if let Some(ended) = studio.compare.poll() {
         match ended {
-            Ok(m) => studio.info(m),
-            Err(e) => studio.error(format!("comparison stopped: {e}")),
+            Ok(m) => {
+                log::info!("{m}");
+                studio.info(m)
+            }
+            Err(e) => {
+                log::error!("comparison stopped: {e}");
+                studio.error(format!("comparison stopped: {e}"))
+            }
         }
     }
     if studio.compare.is_running() {
@@ -498,8 +517,7 @@ fn settings(studio: &mut Studio, ui: &mut egui::Ui) {
                 );
             }
         } else if ui.button("Run comparison").clicked() {
-            let started = load_chosen(studio).and_then(|f| studio.compare.start(f, ui.ctx()));
-            if let Err(e) = started {
+            if let Err(e) = run_chosen(studio, ui.ctx()) {
                 studio.compare.error = Some(e);
             }
         }
@@ -577,7 +595,9 @@ fn results(c: &mut CompareState, ui: &mut egui::Ui, ctx: &egui::Context) -> Opti
                     .height(220.0)
                     .x_axis_label(x_label)
                     .show(ui, |plot| {
-                        for family in &report.families {
+                        for (k, family) in report.families.iter().enumerate() {
+                            let [r, g, b] = PALETTE[k % PALETTE.len()];
+                            let colour = egui::Color32::from_rgb(r, g, b);
                             let rows = || report.rows.iter().filter(|r| &r.family == family);
                             let series = |tail: bool| -> Vec<[f64; 2]> {
                                 rows()
@@ -591,13 +611,17 @@ fn results(c: &mut CompareState, ui: &mut egui::Ui, ctx: &egui::Context) -> Opti
                                     })
                                     .collect()
                             };
-                            plot.line(Line::new(family.clone(), PlotPoints::new(series(false))));
+                            plot.line(
+                                Line::new(family.clone(), PlotPoints::new(series(false)))
+                                    .color(colour),
+                            );
                             if pick > 0 {
                                 plot.line(
                                     Line::new(
                                         format!("{family} p99"),
                                         PlotPoints::new(series(true)),
                                     )
+                                    .color(colour)
                                     .style(egui_plot::LineStyle::dashed_loose()),
                                 );
                             }

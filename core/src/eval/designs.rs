@@ -35,8 +35,22 @@ pub struct WorstCase {
     pub read: Option<[[f64; 2]; 4]>,
     /// Rotation error of the read, degrees, when it has a pose.
     pub rotation_deg: Option<f64>,
-    /// How it ranks: infinite when missed, else the rotation error (0 without a pose).
-    pub badness: f64,
+}
+
+impl WorstCase {
+    /// How it ranks: infinite when missed, else the rotation error (0 without a pose). Derived,
+    /// not stored: an infinite float has no JSON form, and the case crosses to the page as JSON.
+    pub fn badness(&self) -> f64 {
+        badness(self.read.is_some(), self.rotation_deg)
+    }
+}
+
+fn badness(read: bool, rotation_deg: Option<f64>) -> f64 {
+    if read {
+        rotation_deg.unwrap_or(0.0)
+    } else {
+        f64::INFINITY
+    }
 }
 
 /// A scenario's scenes, read by each family's detector as far as the run has got.
@@ -158,16 +172,11 @@ impl DesignRun {
         outcome: &Outcome,
     ) {
         for (truth, read) in sample.truth.markers.iter().zip(&outcome.read) {
-            let badness = read.map_or(f64::INFINITY, |r| {
-                if r.rotation_deg.is_finite() {
-                    r.rotation_deg
-                } else {
-                    0.0
-                }
-            });
+            let rotation_deg = read.map(|r| r.rotation_deg).filter(|d| d.is_finite());
+            let badness = badness(read.is_some(), rotation_deg);
             let mine = self.worst.iter().filter(|w| w.family == family);
             let (count, least) = mine.fold((0, f64::INFINITY), |(n, least), w| {
-                (n + 1, least.min(w.badness))
+                (n + 1, least.min(w.badness()))
             });
             if count >= WORST_KEPT && badness <= least {
                 continue;
@@ -178,7 +187,7 @@ impl DesignRun {
             if count >= WORST_KEPT {
                 let (at, _) = (self.worst.iter().enumerate())
                     .filter(|(_, w)| w.family == family)
-                    .min_by(|a, b| a.1.badness.total_cmp(&b.1.badness))
+                    .min_by(|a, b| a.1.badness().total_cmp(&b.1.badness()))
                     .expect("the family has cases");
                 self.worst.remove(at);
             }
@@ -189,8 +198,7 @@ impl DesignRun {
                 crop,
                 truth: shift(truth_corners),
                 read: read.map(|r| shift(r.corners)),
-                rotation_deg: read.map(|r| r.rotation_deg).filter(|d| d.is_finite()),
-                badness,
+                rotation_deg,
             });
         }
     }

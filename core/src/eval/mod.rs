@@ -17,7 +17,7 @@
 
 pub mod compare;
 pub mod designs;
-mod plot;
+pub mod plot;
 pub mod scenario;
 pub mod score;
 pub mod set;

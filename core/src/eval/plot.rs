@@ -14,9 +14,15 @@ pub struct Series<'a> {
     pub dashed: bool,
 }
 
-/// Colours of series, told apart in gray print as well.
-const COLOURS: [&str; 6] = [
-    "#1f5fbf", "#d9480f", "#2b8a3e", "#862e9c", "#495057", "#e8590c",
+/// Colours of series, told apart in gray print as well; the studio's Compare panel draws each
+/// design in the same colour as these charts.
+pub const COLOURS: [[u8; 3]; 6] = [
+    [0x1f, 0x5f, 0xbf],
+    [0xd9, 0x48, 0x0f],
+    [0x2b, 0x8a, 0x3e],
+    [0x86, 0x2e, 0x9c],
+    [0x49, 0x50, 0x57],
+    [0xe8, 0x59, 0x0c],
 ];
 
 pub fn line_chart(
@@ -106,7 +112,8 @@ pub fn chart(title: &str, x_label: &str, y_label: &str, series: &[Series], y_max
     }
     let mut legend_y = top + 4.0;
     for s in series {
-        let colour = COLOURS[s.colour % COLOURS.len()];
+        let [r, g, b] = COLOURS[s.colour % COLOURS.len()];
+        let colour = format!("#{r:02x}{g:02x}{b:02x}");
         // A missing value (no marker read) breaks the line rather than dropping to zero.
         for run in s.points.split(|p| !p.1.is_finite()) {
             let line: Vec<String> = run
@@ -116,7 +123,7 @@ pub fn chart(title: &str, x_label: &str, y_label: &str, series: &[Series], y_max
             let mut polyline = Polyline::new()
                 .set("points", line.join(" "))
                 .set("fill", "none")
-                .set("stroke", colour)
+                .set("stroke", colour.as_str())
                 .set("stroke-width", 2);
             if s.dashed {
                 polyline = polyline.set("stroke-dasharray", "5 3");

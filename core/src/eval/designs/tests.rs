@@ -181,11 +181,36 @@ fn worst_cases_keep_the_misses_cut_out_around_the_marker() {
         .collect();
     assert_eq!(misses.len(), WORST_KEPT);
     for w in misses {
-        assert!(w.read.is_none() && w.badness.is_infinite());
+        assert!(w.read.is_none() && w.badness().is_infinite());
         assert!(w.crop.width < 320 && w.crop.height < 240);
         assert!(w
             .truth
             .iter()
             .all(|p| p[0] >= 0.0 && p[0] < w.crop.width as f64));
     }
+}
+
+/// The browser's compare worker sends its report and worst cases to the page as JSON: a missed
+/// marker (the worst kind of case) must survive the trip.
+#[test]
+fn a_run_with_misses_crosses_to_the_page_as_json() {
+    let mut far_blind = Oracle::perfect();
+    far_blind.misses = |d| d > 0.6;
+    let run = run(scenario(4), &mut Oracle::perfect(), &mut far_blind);
+    let sent = serde_json::to_string(&(run.report(), run.worst_cases())).unwrap();
+    let (report, worst): (DesignReport, Vec<WorstCase>) = serde_json::from_str(&sent).unwrap();
+    // Floats come back within a unit in the last place (serde_json's fast parsing).
+    let expected = run.report();
+    assert_eq!(report.verdict, expected.verdict);
+    assert_eq!(report.rows.len(), expected.rows.len());
+    for (got, sent) in report.rows.iter().zip(&expected.rows) {
+        assert_eq!(
+            (got.read, got.markers, got.recall),
+            (sent.read, sent.markers, sent.recall)
+        );
+    }
+    assert!(worst
+        .iter()
+        .any(|w| w.read.is_none() && w.badness().is_infinite()));
+    assert_eq!(worst.len(), run.worst_cases().len());
 }
