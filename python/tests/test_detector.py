@@ -157,12 +157,19 @@ def test_a_family_file_with_its_model_file(tmp_path):
         tagsmith.Detector(
             families=[str(family_file)], models={"apriltag-36h11": str(tmp_path / "missing.bin")}
         )
+    # Under another name the same layout reads with the same weights (the codebook decodes).
     spec["name"] = "my-36h11"
     family_file.write_text(json.dumps(spec))
-    with pytest.raises(ValueError, match="trained for family"):
-        tagsmith.Detector(families=[str(family_file)], models={"my-36h11": str(model)})
+    renamed = tagsmith.Detector(families=[str(family_file)], models={"my-36h11": str(model)})
+    [d] = renamed.detect(scene(tag_id=9))
+    assert (d.family, d.tag_id) == ("my-36h11", 9)
     with pytest.raises(ValueError, match="no weights are shipped"):
         tagsmith.Detector(families=[str(family_file)])
+    # A ROI the weights never learned is refused, naming the family they were trained for.
+    spec["roi"]["margin"] = 0.3
+    family_file.write_text(json.dumps(spec))
+    with pytest.raises(ValueError, match="trained for family \"apriltag-36h11\""):
+        tagsmith.Detector(families=[str(family_file)], models={"my-36h11": str(model)})
     with pytest.raises(ValueError, match="none of the families"):
         tagsmith.Detector(families=["apriltag-36h11"], models={"aruco-6x6_250": str(model)})
 

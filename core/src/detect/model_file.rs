@@ -36,8 +36,8 @@ pub enum ModelError {
     #[error("{path}: the model file is corrupt: {reason}")]
     Corrupt { path: String, reason: String },
     #[error(
-        "{path}: the model was trained for family {model:?}, not {family:?}; train one with \
-         `tagsmith train {family} --stage keypoints`"
+        "{path}: the model was trained for family {model:?}, not {family:?} (their layouts, \
+         categories or ROIs differ); train one with `tagsmith train {family} --stage keypoints`"
     )]
     WrongFamily {
         path: String,

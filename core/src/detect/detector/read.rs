@@ -8,7 +8,7 @@ use super::{Detector, FamilyReader, Found, Timings};
 use crate::detect::cells::{CellOutcome, CellRead};
 use crate::detect::precheck::QuadSample;
 use crate::detect::stage1::group::{same_quad, Proposal};
-use crate::detect::stage2::{ReadOptions, Stage2Result};
+use crate::detect::stage2::{PassMemo, ReadOptions, Stage2Result};
 use crate::detect::DetectedKeypoint;
 use crate::family::{Assignment, Family};
 use crate::geometry::{largest_corner_move, Camera, Homography};
@@ -175,6 +175,8 @@ impl Detector {
         let verified = self.verify(image, proposals, batch, timings);
         let clock = Stopwatch::start();
         let mut best: Vec<Option<Found>> = vec![None; proposals.len()];
+        // Families sharing weights read each quad with one pass between them.
+        let mut memo = PassMemo::default();
         for (r, (reader, checked)) in self.readers.iter().zip(verified).enumerate() {
             if checked.is_empty() || only.is_some_and(|o| o != r) {
                 continue;
@@ -189,9 +191,7 @@ impl Detector {
                 ..*read_options
             };
             let (first_reads, passes) =
-                reader
-                    .stage2
-                    .first_passes_counted(image, &checked_rois, &options);
+                (reader.stage2).first_passes_shared(image, &checked_rois, &options, &mut memo);
             timings.passes += passes;
             let mut firsts = vec![None; rois.len()];
             for (i, first) in checked.iter().zip(first_reads) {

@@ -101,8 +101,8 @@ pub fn read_header(bytes: &[u8], path: &str) -> Result<(ModelHeader, usize), Mod
     Ok((header, start))
 }
 
-/// Loads a model for `family` onto `device`, checking that it was trained for that family and
-/// that its bytes are intact.
+/// Loads a model for `family` onto `device`, checking that it was trained for that family's
+/// layout (under whatever name) and that its bytes are intact.
 pub fn from_bytes(
     bytes: &[u8],
     path: &str,
@@ -110,14 +110,16 @@ pub fn from_bytes(
     device: &Device,
 ) -> Result<(Stage2Net, ModelHeader), ModelError> {
     let (header, start) = read_header(bytes, path)?;
-    if header.family != family.name() {
-        return Err(ModelError::WrongFamily {
-            path: path.into(),
-            model: header.family,
-            family: family.name().into(),
-        });
-    }
+    // The weights fit any family with the layout they learned: the codebook only decodes what
+    // they read (ArUco 6x6_250 reads with AprilTag 36h11's model).
     if header.family_hash != family_hash(family) {
+        if header.family != family.name() {
+            return Err(ModelError::WrongFamily {
+                path: path.into(),
+                model: header.family,
+                family: family.name().into(),
+            });
+        }
         return Err(ModelError::FamilyChanged {
             path: path.into(),
             family: family.name().into(),

@@ -38,6 +38,25 @@ pub(super) const MAX_RETRIED_ROIS: usize = 6;
 /// A patch's read: the marker, or where it does not decode, the ROI its keypoints place.
 type Readout = Result<Stage2Result, Option<[[f64; 2]; 4]>>;
 
+/// The network's outputs on one image's quads, by weights and quad, kept while the families of
+/// a detection read the same proposals. Families with one layout can share one model (AprilTag
+/// 36h11 and ArUco 6x6_250 ship the same weights; the codebook is not the network's business),
+/// and then a quad costs one pass whatever the number of such families: each decodes the same
+/// outputs against its own codebook.
+#[derive(Default)]
+pub struct PassMemo {
+    outputs: std::collections::HashMap<(u64, [u64; 8]), RawOutputs>,
+}
+
+impl PassMemo {
+    fn key(weights: u64, roi: &[[f64; 2]; 4]) -> (u64, [u64; 8]) {
+        (
+            weights,
+            std::array::from_fn(|k| roi[k / 2][k % 2].to_bits()),
+        )
+    }
+}
+
 /// A loaded model, ready to run on patches and images.
 pub struct Stage2 {
     /// The folded network as plain loops: what detection runs.
@@ -47,6 +66,9 @@ pub struct Stage2 {
     pub header: ModelHeader,
     family: Family,
     templates: TemplateCache,
+    /// Which weights and layout these are: two `Stage2`s with one key compute the same outputs
+    /// on the same patch (the key of a [`PassMemo`]).
+    pass_key: u64,
 }
 
 /// How stage 2 reads a ROI.
@@ -143,14 +165,25 @@ impl Stage2 {
             size: header.net.patch as u32,
             ..PatchSpec::default()
         };
+        let identity = format!(
+            "{} {} {}",
+            header.weights_fnv, header.family_hash, header.net.patch
+        );
         Self {
             net: net.plain(),
             config: header.net,
             spec,
+            pass_key: crate::detect::model_file::fnv1a(identity.as_bytes()),
             header,
             family: family.clone(),
             templates: TemplateCache::default(),
         }
+    }
+
+    /// Whether `other` computes the same network outputs (same weights, layout and patch), so
+    /// that one pass serves both.
+    pub fn shares_passes_with(&self, other: &Stage2) -> bool {
+        self.pass_key == other.pass_key
     }
 
     /// Network outputs for patches of `spec.size`².
@@ -176,10 +209,19 @@ impl Stage2 {
 
     /// The patch a ROI (the family's ROI points 0–3 in the image, in order) warps to.
     pub fn warp(&self, image: &GrayImage, roi: &[[f64; 2]; 4]) -> Option<(GrayImage, Homography)> {
-        let to_image = Homography::from_points(&self.spec.template_corners(), roi).ok()?;
+        let to_image = self.to_image(roi)?;
+        Some((self.warp_by(image, &to_image), to_image))
+    }
+
+    /// The map from patch pixels to the image that warps `roi` to the patch.
+    fn to_image(&self, roi: &[[f64; 2]; 4]) -> Option<Homography> {
+        Homography::from_points(&self.spec.template_corners(), roi).ok()
+    }
+
+    fn warp_by(&self, image: &GrayImage, to_image: &Homography) -> GrayImage {
         let size = self.spec.size;
         // Outside the image: mid-gray, which the per-patch normalisation maps to about zero.
-        Some((warp_bilinear(image, &to_image, size, size, 128), to_image))
+        warp_bilinear(image, to_image, size, size, 128)
     }
 
     /// Decodes the marker in `roi`; the pose needs a camera and the marker's side in metres
@@ -219,6 +261,19 @@ impl Stage2 {
         rois: &[[[f64; 2]; 4]],
         options: &ReadOptions,
     ) -> (Vec<Option<Stage2Result>>, usize) {
+        self.first_passes_shared(image, rois, options, &mut PassMemo::default())
+    }
+
+    /// [`Stage2::first_passes_counted`] taking the outputs of quads another family with the same
+    /// weights read already from `memo` (and leaving its own there): the passes counted are
+    /// those run.
+    pub fn first_passes_shared(
+        &self,
+        image: &GrayImage,
+        rois: &[[[f64; 2]; 4]],
+        options: &ReadOptions,
+        memo: &mut PassMemo,
+    ) -> (Vec<Option<Stage2Result>>, usize) {
         let mut passes = 0;
         // Retries only where the alignment with the rendering can confirm the frame such a
         // read ends with (`continue_from`).
@@ -232,8 +287,8 @@ impl Stage2 {
                 break;
             }
             let (mut still_pending, mut still_rois) = (Vec::new(), Vec::new());
-            passes += pending_rois.len();
-            let outcomes = self.read_batch(image, &pending_rois);
+            let (outcomes, ran) = self.read_batch(image, &pending_rois, memo);
+            passes += ran;
             for ((i, last), outcome) in pending.into_iter().zip(&pending_rois).zip(outcomes) {
                 match outcome {
                     Ok(r) => {
@@ -257,32 +312,39 @@ impl Stage2 {
         (results, passes)
     }
 
-    /// One network batch over `rois`: each one's result, or where it does not decode, the ROI
-    /// its keypoints place (when enough fit the template).
-    fn read_batch(&self, image: &GrayImage, rois: &[[[f64; 2]; 4]]) -> Vec<Readout> {
-        let mut patches = Vec::with_capacity(rois.len());
-        let to_images: Vec<Option<Homography>> = rois
-            .iter()
-            .map(|roi| {
-                let (patch, to_image) = self.warp(image, roi)?;
-                patches.push(patch);
-                Some(to_image)
+    /// One network batch over those of `rois` not in `memo`: each one's result, or where it does
+    /// not decode, the ROI its keypoints place (when enough fit the template); and the patches
+    /// the network ran on.
+    fn read_batch(
+        &self,
+        image: &GrayImage,
+        rois: &[[[f64; 2]; 4]],
+        memo: &mut PassMemo,
+    ) -> (Vec<Readout>, usize) {
+        let to_images: Vec<Option<Homography>> = rois.iter().map(|r| self.to_image(r)).collect();
+        let (mut patches, mut keys) = (Vec::new(), Vec::new());
+        for (roi, to_image) in rois.iter().zip(&to_images) {
+            let key = PassMemo::key(self.pass_key, roi);
+            if let Some(to_image) = to_image {
+                if !memo.outputs.contains_key(&key) && !keys.contains(&key) {
+                    patches.push(self.warp_by(image, to_image));
+                    keys.push(key);
+                }
+            }
+        }
+        let ran = patches.len();
+        if ran > 0 {
+            memo.outputs
+                .extend(keys.into_iter().zip(self.run_patches(&patches)));
+        }
+        let readouts = (rois.iter().zip(&to_images))
+            .map(|(roi, to_image)| {
+                let to_image = to_image.as_ref().ok_or(None)?;
+                let raw = &memo.outputs[&PassMemo::key(self.pass_key, roi)];
+                self.read_outputs(raw, to_image)
             })
             .collect();
-        let mut raw = if patches.is_empty() {
-            Vec::new()
-        } else {
-            self.run_patches(&patches)
-        }
-        .into_iter();
-        to_images
-            .iter()
-            .map(|to_image| {
-                // Only warped ROIs have an output: take one only for them.
-                let to_image = to_image.as_ref().ok_or(None)?;
-                self.read_outputs(&raw.next().ok_or(None)?, to_image)
-            })
-            .collect()
+        (readouts, ran)
     }
 
     /// The passes after the first (each from the last one's keypoints), the alignment against
@@ -369,7 +431,9 @@ impl Stage2 {
     }
 
     fn pass(&self, image: &GrayImage, roi: &[[f64; 2]; 4]) -> Option<Stage2Result> {
-        self.read_batch(image, std::slice::from_ref(roi))
+        (self
+            .read_batch(image, std::slice::from_ref(roi), &mut PassMemo::default())
+            .0)
             .pop()?
             .ok()
     }
