@@ -23,21 +23,23 @@ pub use crate::detect::blocks::Contrast;
 #[cfg(feature = "detect")]
 pub use pipeline::{PassMemo, ReadOptions, Stage2, Stage2Result};
 
-/// The black-and-white 8 × 8 grid's weights (a one-cell black border round 6 × 6 data cells),
-/// trained on ArUco 6x6_250 codes: they read AprilTag 36h11 markers as well as 36h11's own
-/// weights, and better under noise (BENCHMARKS.md, "One model for one layout"), so both families
-/// ship them and a detection of both reads each quad once.
-const BLACK_WHITE_GRID_8: &[u8] =
-    include_bytes!("../../../../assets/models/aruco-6x6_250.stage2.bin");
-
-/// Stage-2 weights shipped in `assets/models/` for built-in families, by family name.
+/// Stage-2 weights shipped in `assets/models/` for built-in families, by family name. AprilTag
+/// 36h11 and ArUco 6x6_250 share a layout and could share weights (one network pass per quad
+/// for both, `PassMemo`), but neither family's weights read the other's markers everywhere as
+/// well as its own (BENCHMARKS.md, "One model for one layout").
 const SHIPPED: &[(&str, &[u8])] = &[
-    ("apriltag-36h11", BLACK_WHITE_GRID_8),
+    (
+        "apriltag-36h11",
+        include_bytes!("../../../../assets/models/apriltag-36h11.stage2.bin"),
+    ),
     (
         "apriltag-xo-36h11",
         include_bytes!("../../../../assets/models/apriltag-xo-36h11.stage2.bin"),
     ),
-    ("aruco-6x6_250", BLACK_WHITE_GRID_8),
+    (
+        "aruco-6x6_250",
+        include_bytes!("../../../../assets/models/aruco-6x6_250.stage2.bin"),
+    ),
 ];
 
 /// The built-in families with shipped stage-2 weights.
