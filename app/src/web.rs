@@ -22,6 +22,7 @@ pub fn start() {
                 canvas,
                 eframe::WebOptions::default(),
                 Box::new(|cc| {
+                    use_the_label_font(&cc.egui_ctx);
                     let app = StudioApp::new(cc, Box::new(WebFiles::default()));
                     Ok(Box::new(FollowsAddress::new(app, &cc.egui_ctx)))
                 }),
@@ -31,6 +32,23 @@ pub fn start() {
             log::error!("the studio could not start: {e:?}");
         }
     });
+}
+
+/// The browser build has no egui fonts of its own (`eframe`'s `default_fonts` is a desktop
+/// feature): its text is drawn in the DejaVu Sans the core embeds for sheet labels, which covers
+/// every symbol the studio writes (° × ≤ σ …).
+fn use_the_label_font(ctx: &egui::Context) {
+    let mut fonts = egui::FontDefinitions::empty();
+    fonts.font_data.insert(
+        "DejaVu Sans".into(),
+        std::sync::Arc::new(egui::FontData::from_static(
+            tagsmith::render::pdf::label_font(),
+        )),
+    );
+    for family in [egui::FontFamily::Proportional, egui::FontFamily::Monospace] {
+        fonts.families.insert(family, vec!["DejaVu Sans".into()]);
+    }
+    ctx.set_fonts(fonts);
 }
 
 /// The studio, following the page's address: `…/#detect=SAMPLE` opens the Detect panel on that

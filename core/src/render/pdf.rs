@@ -11,6 +11,12 @@ use svg2pdf::usvg;
 /// The label font, embedded so that every machine produces the same PDF.
 static FONT: &[u8] = include_bytes!("../../../assets/fonts/DejaVuSans.ttf");
 
+/// The embedded label font (DejaVu Sans): the browser studio draws its text with it too, so the
+/// module carries one font rather than this and egui's own.
+pub fn label_font() -> &'static [u8] {
+    FONT
+}
+
 pub const PT_PER_MM: f64 = 72.0 / 25.4;
 
 fn svg_options() -> &'static usvg::Options<'static> {
