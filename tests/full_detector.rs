@@ -413,17 +413,19 @@ fn tracking_follows_the_markers_of_a_moving_scene_with_stage_2_alone() {
             }
         }
         let name = format!("frame-{k}.png");
-        std::fs::write(
-            dir.path().join(&name),
-            tagsmith::image::encode_png(&frame).unwrap(),
-        )
-        .unwrap();
+        let png = tagsmith::image::encode_png(&frame).unwrap();
+        std::fs::write(dir.path().join(&name), &png).unwrap();
+        // The same frames as a folder of a video's frames, beside a file that is no image.
+        std::fs::create_dir_all(dir.path().join("video")).unwrap();
+        std::fs::write(dir.path().join("video").join(&name), &png).unwrap();
         frames.push(name);
     }
+    std::fs::write(dir.path().join("video/notes.txt"), "not a frame").unwrap();
     let frame_args: Vec<&str> = frames.iter().map(String::as_str).collect();
-    for (every, want) in [
-        ("10", [false, true, true, true, true]),
-        ("2", [false, true, false, true, false]),
+    for (every, want, inputs) in [
+        ("10", [false, true, true, true, true], frame_args.clone()),
+        ("2", [false, true, false, true, false], frame_args.clone()),
+        ("10", [false, true, true, true, true], vec!["video"]),
     ] {
         let mut args = vec![
             "detect",
@@ -437,7 +439,7 @@ fn tracking_follows_the_markers_of_a_moving_scene_with_stage_2_alone() {
             "--json",
             "out.json",
         ];
-        args.extend(&frame_args);
+        args.extend(&inputs);
         let run = tagsmith(dir.path(), &args);
         run.ok();
         assert!(run.stdout.contains("(tracked: "), "{}", run.stdout);
@@ -448,7 +450,7 @@ fn tracking_follows_the_markers_of_a_moving_scene_with_stage_2_alone() {
             .iter()
             .map(|i| i["timings"]["tracked"].as_bool().unwrap())
             .collect();
-        assert_eq!(tracked, want, "--redetect-every {every}");
+        assert_eq!(tracked, want, "--redetect-every {every} on {inputs:?}");
         for (k, image) in images.iter().enumerate() {
             assert_eq!(
                 image["detections"].as_array().unwrap().len(),
@@ -471,6 +473,19 @@ fn tracking_follows_the_markers_of_a_moving_scene_with_stage_2_alone() {
             "{first:?} → {last:?}"
         );
     }
+}
+
+/// A folder with no image in it is refused, named, with the formats that count.
+#[test]
+fn a_folder_without_images_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::create_dir(dir.path().join("empty")).unwrap();
+    std::fs::write(dir.path().join("empty/readme.txt"), "no frames").unwrap();
+    refused(
+        dir.path(),
+        &["detect", "--track", "empty"],
+        &["empty", "holds no image", "png"],
+    );
 }
 
 /// `--redetect-every` means nothing without `--track`, and is refused.

@@ -22,7 +22,8 @@ use tagsmith_studio::settings::DetectorSettings;
 /// of them made `detect` look hung.
 #[derive(Args, Debug)]
 pub struct DetectArgs {
-    /// Images: PNG, JPEG, BMP, TIFF, WebP or PNM (colour is converted to gray).
+    /// Images: PNG, JPEG, BMP, TIFF, WebP or PNM (colour is converted to gray); a folder gives
+    /// its images in file-name order (a video's frames for --track).
     #[arg(required = true)]
     pub images: Vec<PathBuf>,
     /// Family to detect: built-in name or path to a family JSON file of at most 64 MB; repeat
@@ -90,8 +91,37 @@ pub struct DetectArgs {
     pub redetect_every: usize,
 }
 
+/// The images named, each folder replaced by the images in it (by their file names, in order:
+/// numbered frames come in sequence). A folder without images is refused, named.
+fn with_folders_opened(paths: &[PathBuf]) -> Result<Vec<PathBuf>> {
+    let mut images = Vec::with_capacity(paths.len());
+    for path in paths {
+        if !path.is_dir() {
+            images.push(path.clone());
+            continue;
+        }
+        let listing = std::fs::read_dir(path)
+            .map_err(|e| bad_input!("{}: cannot list the folder: {e}", path.display()))?;
+        let mut inside: Vec<PathBuf> = listing
+            .filter_map(|entry| entry.ok().map(|e| e.path()))
+            .filter(|p| p.is_file() && tagsmith::image::has_image_name(p))
+            .collect();
+        if inside.is_empty() {
+            return Err(bad_input!(
+                "{}: the folder holds no image ({})",
+                path.display(),
+                tagsmith::image::EXTENSIONS.join(", ")
+            ));
+        }
+        inside.sort();
+        images.extend(inside);
+    }
+    Ok(images)
+}
+
 impl DetectArgs {
-    pub fn run(self) -> Result<()> {
+    pub fn run(mut self) -> Result<()> {
+        self.images = with_folders_opened(&self.images)?;
         if self.roi.is_some() {
             self.run_roi()
         } else {

@@ -20,9 +20,7 @@ pub enum Purpose {
 pub const MAX_IMAGE_BYTES: u64 = 512 << 20;
 
 /// Extensions the image reader decodes.
-pub const IMAGE_EXTENSIONS: &[&str] = &[
-    "png", "jpg", "jpeg", "bmp", "tif", "tiff", "webp", "pgm", "pnm", "ppm",
-];
+pub const IMAGE_EXTENSIONS: &[&str] = tagsmith::image::EXTENSIONS;
 
 impl Purpose {
     /// The open dialog's filter: its name and extensions.
@@ -45,10 +43,7 @@ impl Purpose {
 
 /// Whether a file's name says it is an image (a dropped file is routed by it).
 pub fn is_image_name(name: &str) -> bool {
-    Path::new(name)
-        .extension()
-        .and_then(|e| e.to_str())
-        .is_some_and(|e| IMAGE_EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
+    tagsmith::image::has_image_name(Path::new(name))
 }
 
 /// A file the user opened (or dropped, or that sits in the user's family folder).

@@ -16,6 +16,17 @@ pub use write::encode_png;
 /// decoded layout (16-bit RGBA), 2 GB, within any machine that runs the detector.
 pub const MAX_PIXELS_CEILING: u64 = 256_000_000;
 
+/// File-name extensions of the formats the reader decodes (lower case).
+pub const EXTENSIONS: &[&str] = &[
+    "png", "jpg", "jpeg", "bmp", "tif", "tiff", "webp", "pgm", "pnm", "ppm",
+];
+
+/// Whether a file's name says it is an image the reader decodes.
+pub fn has_image_name(path: &std::path::Path) -> bool {
+    (path.extension().and_then(|e| e.to_str()))
+        .is_some_and(|e| EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
+}
+
 /// An 8-bit grayscale image, row-major.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct GrayImage {
