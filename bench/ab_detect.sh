@@ -13,7 +13,7 @@ family=()
 for image in "$@"; do
   for _ in $(seq "$rounds"); do
     for bin in "$before" "$after"; do
-      echo "$bin	$("$bin" detect --sequential "${family[@]}" "$image" 2>&1 | tail -1)"
+      echo "$bin	$("$bin" detect --sequential ${family[@]+"${family[@]}"} "$image" 2>&1 | tail -1)"
     done
   done | python3 -c '
 import re, statistics, sys

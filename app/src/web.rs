@@ -107,7 +107,8 @@ fn address_hash() -> String {
 fn open_from_address(app: &mut StudioApp, hash: &str, ctx: &egui::Context) {
     if let Some(query) = hash.strip_prefix("#compare=") {
         if let Err(e) = compare_from_address(app, query, ctx) {
-            log::error!("{e}");
+            // The words scripts/browser/compare.mjs waits for, as for a run that fails.
+            log::error!("comparison stopped: {e}");
             app.studio.error(e);
         }
     }

@@ -91,8 +91,9 @@ pub struct DetectArgs {
     pub redetect_every: usize,
 }
 
-/// The images named, each folder replaced by the images in it (by their file names, in order:
-/// numbered frames come in sequence). A folder without images is refused, named.
+/// The images named, each folder replaced by the images in it in natural order of their names
+/// (`frame-2.png` before `frame-10.png`: a video's numbered frames, padded or not, in sequence).
+/// A folder without images is refused, named.
 fn with_folders_opened(paths: &[PathBuf]) -> Result<Vec<PathBuf>> {
     let mut images = Vec::with_capacity(paths.len());
     for path in paths {
@@ -113,10 +114,41 @@ fn with_folders_opened(paths: &[PathBuf]) -> Result<Vec<PathBuf>> {
                 tagsmith::image::EXTENSIONS.join(", ")
             ));
         }
-        inside.sort();
+        inside.sort_by(|a, b| natural_order(a, b));
         images.extend(inside);
     }
     Ok(images)
+}
+
+/// Names compared with each run of digits as a number: "frame-9" < "frame-10".
+fn natural_order(a: &Path, b: &Path) -> std::cmp::Ordering {
+    fn runs(path: &Path) -> Vec<(bool, String)> {
+        let name = path.to_string_lossy();
+        let mut runs: Vec<(bool, String)> = Vec::new();
+        for c in name.chars() {
+            let digit = c.is_ascii_digit();
+            match runs.last_mut() {
+                Some((d, run)) if *d == digit => run.push(c),
+                _ => runs.push((digit, c.to_string())),
+            }
+        }
+        runs
+    }
+    let number = |run: &str| {
+        let trimmed = run.trim_start_matches('0');
+        (trimmed.len(), trimmed.to_string())
+    };
+    let (ra, rb) = (runs(a), runs(b));
+    for (x, y) in ra.iter().zip(&rb) {
+        let order = match (x, y) {
+            ((true, p), (true, q)) => number(p).cmp(&number(q)),
+            ((_, p), (_, q)) => p.cmp(q),
+        };
+        if order.is_ne() {
+            return order;
+        }
+    }
+    ra.len().cmp(&rb.len()).then_with(|| a.cmp(b))
 }
 
 impl DetectArgs {
@@ -762,6 +794,20 @@ fn load_model(model: Option<&Path>, family: &Family) -> Result<Stage2> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_folders_frames_come_in_the_order_of_their_numbers() {
+        let mut names: Vec<PathBuf> = ["f-10.png", "f-2.png", "f-1.png", "f-02b.png", "e-3.png"]
+            .iter()
+            .map(PathBuf::from)
+            .collect();
+        names.sort_by(|a, b| natural_order(a, b));
+        let sorted: Vec<&str> = names.iter().map(|p| p.to_str().unwrap()).collect();
+        assert_eq!(
+            sorted,
+            ["e-3.png", "f-1.png", "f-2.png", "f-02b.png", "f-10.png"]
+        );
+    }
 
     /// A set generated from a user's family file names a family no built-in has: detect-set
     /// finds it in the set's `family.json`; a set without one falls back to the built-in name.

@@ -37,7 +37,7 @@ pub enum ModelError {
     Corrupt { path: String, reason: String },
     #[error(
         "{path}: the model was trained for family {model:?}, not {family:?} (their layouts, \
-         categories or ROIs differ); train one with `tagsmith train {family} --stage keypoints`"
+         keypoints, categories or ROIs differ); train one with `tagsmith train {family} --stage keypoints`"
     )]
     WrongFamily {
         path: String,

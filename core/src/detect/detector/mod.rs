@@ -95,7 +95,9 @@ pub struct Timings {
     pub proposals: usize,
     /// Stage-2 reads started (quads × families that verified them).
     pub reads: usize,
-    /// Stage-2 network passes (first passes, their retries from keypoints, later passes).
+    /// Stage-2 network passes run (first passes, their retries from keypoints, later passes). A
+    /// quad read by several families that share weights costs one pass, so there can be fewer
+    /// passes than reads.
     pub passes: usize,
     /// Per source, in [`Source::ALL`]'s order.
     pub sources: [SourceTally; SOURCES],

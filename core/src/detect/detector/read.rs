@@ -175,7 +175,8 @@ impl Detector {
         let verified = self.verify(image, proposals, batch, timings);
         let clock = Stopwatch::start();
         let mut best: Vec<Option<Found>> = vec![None; proposals.len()];
-        // Families sharing weights read each quad with one pass between them.
+        // Families sharing weights read each quad with one pass between them; a family sharing
+        // with none keeps its outputs only while it reads.
         let mut memo = PassMemo::default();
         for (r, (reader, checked)) in self.readers.iter().zip(verified).enumerate() {
             if checked.is_empty() || only.is_some_and(|o| o != r) {
@@ -190,8 +191,13 @@ impl Detector {
                 retried_rois: batch.params.retried_rois,
                 ..*read_options
             };
-            let (first_reads, passes) =
-                (reader.stage2).first_passes_shared(image, &checked_rois, &options, &mut memo);
+            let shares = (self.readers.iter().enumerate())
+                .any(|(o, other)| o != r && other.stage2.shares_passes_with(&reader.stage2));
+            let (first_reads, passes) = if shares {
+                (reader.stage2).first_passes_shared(image, &checked_rois, &options, &mut memo)
+            } else {
+                (reader.stage2).first_passes_counted(image, &checked_rois, &options)
+            };
             timings.passes += passes;
             let mut firsts = vec![None; rois.len()];
             for (i, first) in checked.iter().zip(first_reads) {

@@ -21,7 +21,9 @@ pub mod pipeline;
 #[cfg(feature = "detect")]
 pub use crate::detect::blocks::Contrast;
 #[cfg(feature = "detect")]
-pub use pipeline::{PassMemo, ReadOptions, Stage2, Stage2Result};
+pub(crate) use pipeline::PassMemo;
+#[cfg(feature = "detect")]
+pub use pipeline::{ReadOptions, Stage2, Stage2Result};
 
 /// Stage-2 weights shipped in `assets/models/` for built-in families, by family name. AprilTag
 /// 36h11 and ArUco 6x6_250 share a layout and could share weights (one network pass per quad

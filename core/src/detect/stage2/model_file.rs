@@ -110,8 +110,8 @@ pub fn from_bytes(
     device: &Device,
 ) -> Result<(Stage2Net, ModelHeader), ModelError> {
     let (header, start) = read_header(bytes, path)?;
-    // The weights fit any family with the layout they learned: the codebook only decodes what
-    // they read (ArUco 6x6_250 reads with AprilTag 36h11's model).
+    // The weights fit any family with the layout they learned, whatever its name: the codebook
+    // only decodes what they read.
     if header.family_hash != family_hash(family) {
         if header.family != family.name() {
             return Err(ModelError::WrongFamily {

@@ -39,12 +39,12 @@ pub(super) const MAX_RETRIED_ROIS: usize = 6;
 type Readout = Result<Stage2Result, Option<[[f64; 2]; 4]>>;
 
 /// The network's outputs on one image's quads, by weights and quad, kept while the families of
-/// a detection read the same proposals. Families with one layout can share one model (AprilTag
-/// 36h11 and ArUco 6x6_250 ship the same weights; the codebook is not the network's business),
+/// a detection read the same proposals. Families of one layout can be given one model (a user's
+/// designs that differ only in their codebooks; the codebook is not the network's business),
 /// and then a quad costs one pass whatever the number of such families: each decodes the same
-/// outputs against its own codebook.
+/// outputs against its own codebook. Valid for one image: its keys do not name the image.
 #[derive(Default)]
-pub struct PassMemo {
+pub(crate) struct PassMemo {
     outputs: std::collections::HashMap<(u64, [u64; 8]), RawOutputs>,
 }
 
@@ -267,7 +267,7 @@ impl Stage2 {
     /// [`Stage2::first_passes_counted`] taking the outputs of quads another family with the same
     /// weights read already from `memo` (and leaving its own there): the passes counted are
     /// those run.
-    pub fn first_passes_shared(
+    pub(crate) fn first_passes_shared(
         &self,
         image: &GrayImage,
         rois: &[[[f64; 2]; 4]],
@@ -323,10 +323,11 @@ impl Stage2 {
     ) -> (Vec<Readout>, usize) {
         let to_images: Vec<Option<Homography>> = rois.iter().map(|r| self.to_image(r)).collect();
         let (mut patches, mut keys) = (Vec::new(), Vec::new());
+        let mut queued = std::collections::HashSet::new();
         for (roi, to_image) in rois.iter().zip(&to_images) {
             let key = PassMemo::key(self.pass_key, roi);
             if let Some(to_image) = to_image {
-                if !memo.outputs.contains_key(&key) && !keys.contains(&key) {
+                if !memo.outputs.contains_key(&key) && queued.insert(key) {
                     patches.push(self.warp_by(image, to_image));
                     keys.push(key);
                 }
