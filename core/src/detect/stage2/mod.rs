@@ -25,23 +25,20 @@ pub(crate) use pipeline::PassMemo;
 #[cfg(feature = "detect")]
 pub use pipeline::{ReadOptions, Stage2, Stage2Result};
 
-/// Stage-2 weights shipped in `assets/models/` for built-in families, by family name. AprilTag
-/// 36h11 and ArUco 6x6_250 share a layout and could share weights (one network pass per quad
-/// for both, `PassMemo`), but neither family's weights read the other's markers everywhere as
-/// well as its own (BENCHMARKS.md, "One model for one layout").
+/// The 8 × 8 black-and-white grid's weights (a one-cell black border round 6 × 6 data cells),
+/// trained on AprilTag 36h11's and ArUco 6x6_250's codes together: both families ship them, so a
+/// detection of both reads each quad with one network pass (`PassMemo`; BENCHMARKS.md, "One
+/// model for one layout").
+const GRID_8_BLACK_WHITE: &[u8] = include_bytes!("../../../../assets/models/grid-8-bw.stage2.bin");
+
+/// Stage-2 weights shipped in `assets/models/` for built-in families, by family name.
 const SHIPPED: &[(&str, &[u8])] = &[
-    (
-        "apriltag-36h11",
-        include_bytes!("../../../../assets/models/apriltag-36h11.stage2.bin"),
-    ),
+    ("apriltag-36h11", GRID_8_BLACK_WHITE),
     (
         "apriltag-xo-36h11",
         include_bytes!("../../../../assets/models/apriltag-xo-36h11.stage2.bin"),
     ),
-    (
-        "aruco-6x6_250",
-        include_bytes!("../../../../assets/models/aruco-6x6_250.stage2.bin"),
-    ),
+    ("aruco-6x6_250", GRID_8_BLACK_WHITE),
 ];
 
 /// The built-in families with shipped stage-2 weights.
