@@ -11,11 +11,8 @@ families=${2:-apriltag-36h11,apriltag-xo-36h11}
 scenes=${3:-2}
 port=${PORT:-8767}
 root=$(cd "$(dirname "$0")/.." && pwd)
-[[ -f "$root/app/dist/index.html" ]] || { echo "app/dist is missing: run scripts/build-web.sh first" >&2; exit 2; }
-[[ -d "$root/scripts/browser/node_modules/playwright-core" ]] || npm ci --prefix "$root/scripts/browser" --no-audit --no-fund >/dev/null
-python3 -m http.server "$port" --bind 127.0.0.1 -d "$root/app/dist" >/dev/null 2>&1 &
-server=$!
-trap 'kill $server 2>/dev/null || true' EXIT
-for _ in $(seq 50); do curl -sf "http://127.0.0.1:$port/" >/dev/null && break; sleep 0.1; done
+source "$root/scripts/browser/serve.sh"
+need_playwright
+serve_dist "$port"
 node "$root/scripts/browser/compare.mjs" "http://127.0.0.1:$port/#compare=$families&scenes=$scenes" "$out"
 echo "wrote $out"

@@ -11,12 +11,9 @@ sample=${2:-aruco-6x6_250-tutorial.jpg}
 runs=${3:-1}
 port=${PORT:-8766}
 root=$(cd "$(dirname "$0")/.." && pwd)
-[[ -f "$root/app/dist/index.html" ]] || { echo "app/dist is missing: run scripts/build-web.sh first" >&2; exit 2; }
-[[ -d "$root/scripts/browser/node_modules/playwright-core" ]] || npm ci --prefix "$root/scripts/browser" --no-audit --no-fund >/dev/null
-python3 -m http.server "$port" --bind 127.0.0.1 -d "$root/app/dist" >/dev/null 2>&1 &
-server=$!
-trap 'kill $server 2>/dev/null || true' EXIT
-for _ in $(seq 50); do curl -sf "http://127.0.0.1:$port/" >/dev/null && break; sleep 0.1; done
+source "$root/scripts/browser/serve.sh"
+need_playwright
+serve_dist "$port"
 for run in $(seq "$runs"); do
   node "$root/scripts/browser/detect.mjs" "http://127.0.0.1:$port/#detect=$sample" "$out"
 done

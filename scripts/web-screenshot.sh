@@ -6,12 +6,8 @@
 set -euo pipefail
 out=$(realpath -m "${1:?usage: scripts/web-screenshot.sh OUT.png [PORT]}")
 port=${2:-8765}
-cd "$(dirname "$0")/../app"
-[[ -f dist/index.html ]] || { echo "app/dist is missing: run scripts/build-web.sh first" >&2; exit 2; }
-python3 -m http.server "$port" --bind 127.0.0.1 -d dist >/dev/null 2>&1 &
-server=$!
-trap 'kill $server 2>/dev/null || true' EXIT
-for _ in $(seq 50); do curl -sf "http://127.0.0.1:$port/" >/dev/null && break; sleep 0.1; done
+source "$(dirname "$0")/browser/serve.sh"
+serve_dist "$port"
 profile=$(mktemp -d)
 chromium --headless --no-sandbox --disable-gpu --use-angle=swiftshader --enable-unsafe-swiftshader \
   --disable-quic --no-first-run --disable-background-networking --disable-component-update \
