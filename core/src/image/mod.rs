@@ -17,9 +17,13 @@ pub use write::encode_png;
 pub const MAX_PIXELS_CEILING: u64 = 256_000_000;
 
 /// File-name extensions of the formats the reader decodes (lower case).
+#[cfg(not(target_arch = "wasm32"))]
 pub const EXTENSIONS: &[&str] = &[
     "png", "jpg", "jpeg", "bmp", "tif", "tiff", "webp", "pgm", "pnm", "ppm",
 ];
+/// The browser build reads neither TIFF nor WebP (core/Cargo.toml says why).
+#[cfg(target_arch = "wasm32")]
+pub const EXTENSIONS: &[&str] = &["png", "jpg", "jpeg", "bmp", "pgm", "pnm", "ppm"];
 
 /// Whether a file's name says it is an image the reader decodes.
 pub fn has_image_name(path: &std::path::Path) -> bool {

@@ -27,6 +27,12 @@ impl Default for Limits {
     }
 }
 
+/// The formats [`ImageErrorKind::UnknownFormat`] names.
+#[cfg(not(target_arch = "wasm32"))]
+const READ_FORMATS: &str = "PNG, JPEG, BMP, TIFF, WebP, PNM";
+#[cfg(target_arch = "wasm32")]
+const READ_FORMATS: &str = "PNG, JPEG, BMP, PNM; TIFF and WebP on the desktop";
+
 /// Why an image could not be read; [`ImageError::path`] is the file, when there is one.
 #[derive(Debug, thiserror::Error)]
 #[error("{}{kind}", path.as_ref().map(|p| format!("{}: ", p.display())).unwrap_or_default())]
@@ -39,7 +45,7 @@ pub struct ImageError {
 pub enum ImageErrorKind {
     #[error("cannot read the file: {0}")]
     Io(#[from] std::io::Error),
-    #[error("not an image in a format Tagsmith reads (PNG, JPEG, BMP, TIFF, WebP, PNM)")]
+    #[error("not an image in a format Tagsmith reads ({READ_FORMATS})")]
     UnknownFormat,
     #[error(
         "the image is {width}×{height} px ({:.1} megapixels), over the limit of {:.1} megapixels",
@@ -124,6 +130,7 @@ fn decode_from(
             }
             decode_with(reader, format, limits)
         }
+        #[cfg(not(target_arch = "wasm32"))]
         ImageFormat::Tiff => {
             let mut source = reader.into_inner();
             match decode_with(
@@ -227,6 +234,7 @@ fn jpeg_end(bytes: &[u8]) -> Option<usize> {
 /// 32- or 64-bit floats (scientific and HDR cameras; 0–1, as for the float colour TIFFs the
 /// crate reads), 16-bit floats, or 32- and 64-bit unsigned integers (scaled from their range).
 /// `None` for other layouts, which stay unsupported.
+#[cfg(not(target_arch = "wasm32"))]
 fn decode_tiff_samples(
     source: impl BufRead + Seek,
     limits: &Limits,
@@ -334,15 +342,17 @@ fn decode_with<R: BufRead + Seek>(
 }
 
 fn is_supported(format: ImageFormat) -> bool {
-    matches!(
-        format,
-        ImageFormat::Png
-            | ImageFormat::Jpeg
-            | ImageFormat::Bmp
-            | ImageFormat::Tiff
-            | ImageFormat::WebP
-            | ImageFormat::Pnm
-    )
+    // A format built out (TIFF and WebP in the browser) is refused as unknown, with the list.
+    format.reading_enabled()
+        && matches!(
+            format,
+            ImageFormat::Png
+                | ImageFormat::Jpeg
+                | ImageFormat::Bmp
+                | ImageFormat::Tiff
+                | ImageFormat::WebP
+                | ImageFormat::Pnm
+        )
 }
 
 /// Gray from any decoded layout, each channel normalised to 0–1 first.
