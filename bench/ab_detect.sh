@@ -2,14 +2,14 @@
 # Two builds of `tagsmith detect --sequential` (default families unless FAMILY is set) on the
 # same images, runs alternated: per image the median time of each over ROUNDS runs, their ratio,
 # stage-2 passes and the markers each reports (and whether the lists match).
-#   bench/ab_detect.sh BEFORE_BIN AFTER_BIN IMAGE... [ROUNDS=5 FAMILY=apriltag-36h11]
+#   bench/ab_detect.sh BEFORE_BIN AFTER_BIN IMAGE... [ROUNDS=5 FAMILY="apriltag-36h11 aruco-6x6_250"]
 set -euo pipefail
 before=${1:?usage: bench/ab_detect.sh BEFORE_BIN AFTER_BIN IMAGE...}
 after=${2:?usage: bench/ab_detect.sh BEFORE_BIN AFTER_BIN IMAGE...}
 shift 2
 rounds=${ROUNDS:-5}
 family=()
-[[ -n "${FAMILY:-}" ]] && family=(--family "$FAMILY")
+for f in ${FAMILY:-}; do family+=(--family "$f"); done
 for image in "$@"; do
   for _ in $(seq "$rounds"); do
     for bin in "$before" "$after"; do

@@ -29,14 +29,20 @@ fn families_lists_every_builtin_with_stats() {
     let dir = tempfile::tempdir().unwrap();
     let run = tagsmith(dir.path(), &["families"]);
     run.ok();
-    assert_eq!(run.stdout.lines().count(), 16, "{}", run.stdout);
-    let line = run
-        .stdout
-        .lines()
-        .find(|l| l.starts_with("apriltag-36h11 "))
-        .unwrap();
-    let cols: Vec<&str> = line.split_whitespace().collect();
-    assert_eq!(&cols[1..6], ["grid", "64", "2", "587", "11"]);
+    assert_eq!(run.stdout.lines().count(), 17, "{}", run.stdout);
+    let cols = |name: &str| -> Vec<String> {
+        let line = (run.stdout.lines())
+            .find(|l| l.starts_with(&format!("{name} ")))
+            .unwrap();
+        line.split_whitespace().map(String::from).collect()
+    };
+    assert_eq!(
+        &cols("apriltag-36h11")[1..7],
+        ["grid", "64", "2", "587", "11", "default"]
+    );
+    // Which detect: by default, when named (shipped weights), or once trained.
+    assert_eq!(cols("artoolkitplus-bch")[4..7], ["4096", "2", "named"]);
+    assert_eq!(cols("apriltag-16h5")[6], "train");
 }
 
 #[test]

@@ -20,6 +20,7 @@ families!(
     "aruco-5x5_100",
     "aruco-6x6_250",
     "aruco-mip-36h12",
+    "artoolkitplus-bch",
     "apriltag-standard41h12",
     "apriltag-circle21h7",
     "apriltag-xo-36h11",

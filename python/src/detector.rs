@@ -14,7 +14,7 @@ use std::sync::{Arc, Mutex};
 use tagsmith::detect::detector::FamilyReader;
 use tagsmith::detect::refine::RefineMode;
 use tagsmith::detect::stage1::Stage1;
-use tagsmith::detect::stage2::{shipped_families, Stage2};
+use tagsmith::detect::stage2::{Stage2, DEFAULT_FAMILIES};
 use tagsmith::detect::{Found, Timings, TrackParams};
 use tagsmith::family::Family;
 use tagsmith::geometry::Camera;
@@ -174,7 +174,7 @@ impl Detector {
                 return Err(bad_input("families: give at least one family"))
             }
             Some(names) => names,
-            None => shipped_families().map(String::from).collect(),
+            None => DEFAULT_FAMILIES.iter().map(|f| f.to_string()).collect(),
         };
         let mut models = models.unwrap_or_default();
         let mut readers = Vec::new();

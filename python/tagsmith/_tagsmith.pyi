@@ -181,8 +181,9 @@ class Detector:
 
         Args:
             families: built-in family names or family JSON file paths (as ``tagsmith
-                --family``); default: every family whose stage-2 weights ship
-                (``detectable_families()``).
+                --family``); default: ``apriltag-36h11``, ``apriltag-xo-36h11`` and
+                ``aruco-6x6_250``, as the CLI; any other of ``detectable_families()`` (such as
+                ``artoolkitplus-bch``) when named.
             models: a dict from family name to its stage-2 model file, for families without
                 shipped weights or to replace them.
             stage1: a stage-1 model file; default: the shipped one.

@@ -8,8 +8,8 @@ use std::path::{Path, PathBuf};
 use tagsmith::detect::annotate::{annotate, annotate_all, Overlay};
 use tagsmith::detect::detector::FamilyReader;
 use tagsmith::detect::stage1::Stage1;
-use tagsmith::detect::stage2::shipped_families;
 use tagsmith::detect::stage2::Stage2;
+use tagsmith::detect::stage2::DEFAULT_FAMILIES;
 use tagsmith::detect::MarkerReport;
 use tagsmith::detect::{BenchDetector, DetectionsFile, Detector, Found, ImageDetections};
 use tagsmith::detect::{TrackParams, Tracker};
@@ -27,7 +27,8 @@ pub struct DetectArgs {
     #[arg(required = true)]
     pub images: Vec<PathBuf>,
     /// Family to detect: built-in name or path to a family JSON file of at most 64 MB; repeat
-    /// for several [default: every built-in family with shipped weights].
+    /// for several [default: apriltag-36h11, apriltag-xo-36h11 and aruco-6x6_250; any other
+    /// built-in with shipped weights, such as artoolkitplus-bch, when named].
     #[arg(long)]
     pub family: Vec<String>,
     /// Read one known ROI instead of searching the image (one image, one family): its 4 ROI
@@ -323,7 +324,7 @@ impl DetectArgs {
     /// The full detector on every image.
     fn run_search(self) -> Result<()> {
         let names: Vec<String> = if self.family.is_empty() {
-            shipped_families().map(String::from).collect()
+            DEFAULT_FAMILIES.iter().map(|f| f.to_string()).collect()
         } else {
             self.family.clone()
         };

@@ -9,12 +9,16 @@ use tagsmith::family;
 #[derive(Args, Debug)]
 pub struct FamiliesArgs {}
 
+// `detects`: "default" (read when no --family is given), "named" (shipped weights, read with
+// --family NAME) or "train" (no shipped weights: `tagsmith train` makes them).
+
 impl FamiliesArgs {
     pub fn run(self) -> Result<()> {
         use std::fmt::Write as _;
+        use tagsmith::detect::stage2::{shipped_model, DEFAULT_FAMILIES};
         let mut out = format!(
-            "{:<24} {:<6} {:>9} {:>3} {:>6} {:>5}  title\n",
-            "name", "layout", "keypoints", "q", "codes", "d_min"
+            "{:<24} {:<6} {:>9} {:>3} {:>6} {:>5} {:<8} title\n",
+            "name", "layout", "keypoints", "q", "codes", "d_min", "detects"
         );
         for name in tagsmith::builtin::names() {
             let f = load_family(name)?;
@@ -23,15 +27,25 @@ impl FamiliesArgs {
                 .codebook
                 .min_distance
                 .map_or("?".into(), |d| d.to_string());
+            // Shipped weights: read by default, or when named with --family; without, the
+            // weights are trained first (`tagsmith train`).
+            let detects = if DEFAULT_FAMILIES.contains(&name) {
+                "default"
+            } else if shipped_model(name).is_some() {
+                "named"
+            } else {
+                "train"
+            };
             let _ = writeln!(
                 out,
-                "{:<24} {:<6} {:>9} {:>3} {:>6} {:>5}  {}",
+                "{:<24} {:<6} {:>9} {:>3} {:>6} {:>5} {:<8} {}",
                 name,
                 if f.is_grid() { "grid" } else { "rings" },
                 f.keypoints().len(),
                 f.q(),
                 f.codebook().len(),
                 d,
+                detects,
                 f.title()
             );
         }

@@ -33,7 +33,7 @@ use super::Studio;
 use crate::settings::DetectorSettings;
 use egui::{Color32, Pos2, Rect, Stroke, Vec2};
 use tagsmith::detect::annotate::{annotate_all, Overlay};
-use tagsmith::detect::stage2::shipped_families;
+use tagsmith::detect::stage2::{shipped_families, DEFAULT_FAMILIES};
 use tagsmith::detect::{
     BenchDetector, DetectionsFile, Detector, DetectorOptions, Found, ImageDetections, Timings,
 };
@@ -126,7 +126,9 @@ pub struct TestScene {
 impl Default for DetectState {
     fn default() -> Self {
         Self {
-            families: shipped_families().map(|f| (f.to_string(), true)).collect(),
+            families: (shipped_families())
+                .map(|f| (f.to_string(), DEFAULT_FAMILIES.contains(&f)))
+                .collect(),
             design: None,
             settings: DetectorSettings::default(),
             image: None,

@@ -2,6 +2,7 @@
 //! rotations a layout admits, nearest-code search with error and erasure correction, and
 //! generation. It knows codes, lengths, alphabets and rotations as permutations, not families.
 
+pub mod bch;
 mod decode;
 mod generate;
 pub mod import;

@@ -28,7 +28,7 @@ pub struct CellReader {
 
 /// Where the known points fit their levels best, and how well ([`CellReader::fit`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
-struct Fitted {
+pub struct Fitted {
     roi: [[f64; 2]; 4],
     /// The fitted black-to-white step over the residuals' spread.
     score: f64,
@@ -317,16 +317,39 @@ impl CellReader {
         roi: &[[f64; 2]; 4],
         max_errors: usize,
     ) -> CellOutcome {
-        let Some(fitted) = self.fit(image, roi) else {
+        self.read_fitted(family, image, self.frame(image, roi).as_ref(), max_errors)
+    }
+
+    /// The frame fitted from `roi`, where it fits well enough to read cells from; the part of
+    /// a read that readers of one frame ([`CellReader::same_frame`]) share.
+    pub fn frame(&self, image: &GrayImage, roi: &[[f64; 2]; 4]) -> Option<Fitted> {
+        self.fit(image, roi).filter(|f| f.score >= MIN_FIT)
+    }
+
+    /// The read of the cells in a frame [`CellReader::frame`] fitted (`None`: it did not fit).
+    pub fn read_fitted(
+        &self,
+        family: &Family,
+        image: &GrayImage,
+        fitted: Option<&Fitted>,
+        max_errors: usize,
+    ) -> CellOutcome {
+        let Some(fitted) = fitted else {
             return CellOutcome::Unfit;
         };
-        if fitted.score < MIN_FIT {
-            return CellOutcome::Unfit;
-        }
-        match self.read_cells(family, image, &fitted, max_errors) {
+        match self.read_cells(family, image, fitted, max_errors) {
             Some(read) => CellOutcome::Read(read),
             None => CellOutcome::Framed(fitted.roi),
         }
+    }
+
+    /// Whether `other`'s frame fit is this one's: the same known points at the same levels
+    /// and ROI (families of one layout, such as AprilTag 36h11 and ArUco 6x6_250, differ only
+    /// in their codes), so one fit serves both.
+    pub fn same_frame(&self, other: &CellReader) -> bool {
+        self.known == other.known
+            && self.to_unit.0 == other.to_unit.0
+            && self.level_range == other.level_range
     }
 
     fn read_cells(
@@ -445,6 +468,16 @@ pub(super) mod tests {
 
     fn family(name: &str) -> Family {
         crate::builtin::get(name).unwrap().unwrap()
+    }
+
+    #[test]
+    fn families_of_one_layout_share_a_frame_fit_and_others_do_not() {
+        let reader = |name: &str| CellReader::new(&family(name)).unwrap();
+        let april = reader("apriltag-36h11");
+        assert!(april.same_frame(&reader("aruco-6x6_250")));
+        assert!(april.same_frame(&reader("artoolkitplus-bch")));
+        assert!(!april.same_frame(&reader("apriltag-16h5")));
+        assert!(!april.same_frame(&reader("aruco-4x4_50")));
     }
 
     #[test]

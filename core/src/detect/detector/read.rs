@@ -5,7 +5,7 @@
 use super::reconcile::Evidence;
 use super::sources::{AcceptParams, Capability, SourceParams, Trust};
 use super::{Detector, FamilyReader, Found, Timings};
-use crate::detect::cells::{CellOutcome, CellRead};
+use crate::detect::cells::{CellOutcome, CellRead, CellReader, Fitted};
 use crate::detect::precheck::QuadSample;
 use crate::detect::stage1::group::{same_quad, Proposal};
 use crate::detect::stage2::{PassMemo, ReadOptions, Stage2Result};
@@ -265,62 +265,77 @@ impl Detector {
         let clock = Stopwatch::start();
         // ROIs whose frame fitted but whose cells did not decode, with the fitted corners.
         let mut framed: Vec<(usize, Proposal)> = Vec::new();
-        for reader in &self.readers {
-            let Some(cells) = &reader.cells else {
-                continue;
-            };
-            let limit = reader.family.codebook().max_correction() / 2;
-            let single = ReadOptions {
-                iterations: 1,
-                ..self.options.read
-            };
-            // Per ROI: the marker its cells read, or the corners its frame fitted.
-            let outcomes: Vec<(usize, Result<Stage2Result, FittedCorners>)> = proposals
-                .par_iter()
-                .enumerate()
-                .with_max_len(1)
-                .filter_map(|(i, proposal)| {
-                    // The frame fit scores hundreds of quads per ROI; one with no light inside
-                    // has no cells to read.
-                    if let (Some(check), Some(sampled)) = (&reader.precheck, &sampled) {
-                        if !check.has_light_inside(sampled[i].as_ref()) {
-                            return None;
+        let single = ReadOptions {
+            iterations: 1,
+            ..self.options.read
+        };
+        // The readers' frame fits: families of one layout share one (the fit scores hundreds
+        // of quads per ROI; reading the cells against a codebook is cheap).
+        let cell_readers: Vec<(usize, &CellReader)> = (self.readers.iter().enumerate())
+            .filter_map(|(r, reader)| reader.cells.as_ref().map(|cells| (r, cells)))
+            .collect();
+        let frame_of: Vec<usize> = (cell_readers.iter())
+            .map(|(_, cells)| {
+                (cell_readers.iter())
+                    .position(|(_, other)| other.same_frame(cells))
+                    .unwrap_or_default()
+            })
+            .collect();
+        // Per ROI, per reader with cells: the marker its cells read, or the corners its frame
+        // fitted.
+        type Outcome = Option<Result<Stage2Result, FittedCorners>>;
+        let outcomes: Vec<Vec<Outcome>> = proposals
+            .par_iter()
+            .enumerate()
+            .with_max_len(1)
+            .map(|(i, proposal)| {
+                let mut frames: Vec<Option<Option<Fitted>>> = vec![None; cell_readers.len()];
+                (cell_readers.iter().enumerate())
+                    .map(|(k, &(r, cells))| {
+                        let reader = &self.readers[r];
+                        // One with no light inside has no cells to read.
+                        if let (Some(check), Some(sampled)) = (&reader.precheck, &sampled) {
+                            if !check.has_light_inside(sampled[i].as_ref()) {
+                                return None;
+                            }
                         }
-                    }
-                    let cell_read = match cells.read_or_frame(
-                        &reader.family,
-                        image,
-                        &proposal.corners,
-                        limit,
-                    ) {
-                        CellOutcome::Read(read) => read,
-                        CellOutcome::Framed(corners) => return Some((i, Err(corners))),
-                        CellOutcome::Unfit => return None,
-                    };
-                    let first = cell_result(&reader.family, &cell_read)?;
-                    let marker = reader.stage2.continue_from(
-                        image,
-                        first,
-                        &single,
-                        camera.map(|c| (c, reader.side_m)),
-                    )?;
-                    (marker.fixed_mismatches <= limit).then_some((i, Ok(marker)))
-                })
-                .collect();
+                        let frame = *frames[frame_of[k]]
+                            .get_or_insert_with(|| cells.frame(image, &proposal.corners));
+                        let limit = reader.family.codebook().max_correction() / 2;
+                        let cell_read =
+                            match cells.read_fitted(&reader.family, image, frame.as_ref(), limit) {
+                                CellOutcome::Read(read) => read,
+                                CellOutcome::Framed(corners) => return Some(Err(corners)),
+                                CellOutcome::Unfit => return None,
+                            };
+                        let first = cell_result(&reader.family, &cell_read)?;
+                        let marker = reader.stage2.continue_from(
+                            image,
+                            first,
+                            &single,
+                            camera.map(|c| (c, reader.side_m)),
+                        )?;
+                        (marker.fixed_mismatches <= limit).then_some(Ok(marker))
+                    })
+                    .collect()
+            })
+            .collect();
+        for (k, &(r, _)) in cell_readers.iter().enumerate() {
             let mut read = Vec::new();
-            for (i, outcome) in outcomes {
-                match outcome {
-                    Ok(marker) => read.push((i, marker)),
-                    Err(corners) => framed.push((
+            for (i, per_reader) in outcomes.iter().enumerate() {
+                match &per_reader[k] {
+                    Some(Ok(marker)) => read.push((i, marker.clone())),
+                    Some(Err(corners)) => framed.push((
                         i,
                         Proposal {
-                            corners,
+                            corners: *corners,
                             ..proposals[i]
                         },
                     )),
+                    None => {}
                 }
             }
-            keep_fewest_corrections(&mut best, reader, proposals, read, true);
+            keep_fewest_corrections(&mut best, &self.readers[r], proposals, read, true);
         }
         // The network reads a sliver from a ROI a pixel or two off that its cells, a pixel
         // wide, cannot: the fitted frame's corners go to stage 2, held like a traced quad.

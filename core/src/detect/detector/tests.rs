@@ -600,3 +600,32 @@ fn families_sharing_weights_read_each_quad_with_one_pass() {
         .stage2
         .shares_passes_with(&shipped.readers[1].stage2));
 }
+
+/// ARToolKitPlus's markers were never in the grid model's training: in whole camera scenes,
+/// detected beside AprilTag 36h11 (the same layout, another codebook), every one is found with
+/// its own ID and none is taken for a 36h11 tag.
+#[test]
+fn a_grid_family_the_shared_model_never_saw_is_detected_in_whole_images() {
+    use crate::synth::{synthesize, Mode, SynthConfig};
+    let get = |name: &str| crate::builtin::get(name).unwrap().unwrap();
+    let family = get("artoolkitplus-bch");
+    let detector = Detector::shipped(vec![get("apriltag-36h11"), family.clone()]).unwrap();
+    let mut config = SynthConfig::new(Mode::Camera);
+    config.markers = [2, 2];
+    config.side_m = [0.05, 0.05];
+    config.distance_m = [0.3, 0.5];
+    config.view_angle_deg = [0.0, 40.0];
+    let (mut found_ids, mut truth_ids) = (Vec::new(), Vec::new());
+    for seed in 0..3 {
+        let sample = synthesize(&family, &config, seed).unwrap();
+        truth_ids.extend(sample.truth.markers.iter().map(|m| m.id));
+        let (found, _) = detector.detect(&sample.image);
+        for f in &found {
+            assert_eq!(f.family, "artoolkitplus-bch", "seed {seed}: {found:?}");
+        }
+        found_ids.extend(found.iter().map(|f| f.marker.id));
+    }
+    found_ids.sort();
+    truth_ids.sort();
+    assert_eq!(found_ids, truth_ids);
+}

@@ -39,12 +39,21 @@ const SHIPPED: &[(&str, &[u8])] = &[
         include_bytes!("../../../../assets/models/apriltag-xo-36h11.stage2.bin"),
     ),
     ("aruco-6x6_250", GRID_8_BLACK_WHITE),
+    // Never trained on: the same layout as the two above, read with its own codebook.
+    ("artoolkitplus-bch", GRID_8_BLACK_WHITE),
 ];
 
 /// The built-in families with shipped stage-2 weights.
 pub fn shipped_families() -> impl Iterator<Item = &'static str> {
     SHIPPED.iter().map(|(name, _)| *name)
 }
+
+/// The families a detection reads when none are named (`tagsmith detect`, the Detect panel's
+/// ticks, the Python `Detector`): a short list, not every family with weights, because each
+/// further family costs time on every image. ARToolKitPlus, on the grid model already loaded,
+/// added a median of about a fifth to the three's time on real photographs, over the ≤ 20 % a
+/// default family may cost (BENCHMARKS.md, "Every family detecting"); it is read when named.
+pub const DEFAULT_FAMILIES: &[&str] = &["apriltag-36h11", "apriltag-xo-36h11", "aruco-6x6_250"];
 
 /// The shipped stage-2 model file of a built-in family, if it has one.
 pub fn shipped_model(family: &str) -> Option<&'static [u8]> {

@@ -25,6 +25,13 @@ fn shipped_aruco_weights_decode_a_noisy_marker_and_its_pose() {
     decodes_noisy_markers("aruco-6x6_250");
 }
 
+/// The grid model never saw ARToolKitPlus's codes: it reads them by the layout it shares with
+/// the two families it was trained on.
+#[test]
+fn the_grid_model_decodes_artoolkitplus_markers_it_was_not_trained_on() {
+    decodes_noisy_markers("artoolkitplus-bch");
+}
+
 /// One 5 cm marker seen by a pinhole camera in the distance and view-angle ranges, with this
 /// sensor noise and blur, and no spotlight, motion blur or lens distortion: the network's
 /// reading alone decides what is read.
