@@ -42,6 +42,9 @@ wasm_bytes=$(wc -c < app/dist.tmp/tagsmith_bg.wasm)
 gzip_bytes=$(gzip -9 -c app/dist.tmp/tagsmith_bg.wasm | wc -c)
 echo "tagsmith_bg.wasm: $wasm_bytes bytes, $gzip_bytes gzipped"
 cp app/index.html app/worker.js app/dist.tmp/
+# The data the module does not embed (core/src/assets.rs): the page and its worker fetch it.
+mkdir -p app/dist.tmp/assets
+cp -r assets/fonts assets/backgrounds assets/samples app/dist.tmp/assets/
 # Swap the finished folder in whole, so a failed build never leaves a half-written dist.
 rm -rf app/dist && mv app/dist.tmp app/dist
 echo "built: $root/app/dist ($(du -sh app/dist | cut -f1); open it through a web server, e.g. python3 -m http.server -d app/dist)"

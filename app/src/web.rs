@@ -12,6 +12,10 @@ pub fn start() {
         return;
     }
     wasm_bindgen_futures::spawn_local(async {
+        if let Err(e) = load_assets().await {
+            show_failure(&format!("The studio could not load its files: {e}"));
+            return;
+        }
         let canvas = web_sys::window()
             .and_then(|w| w.document())
             .and_then(|d| d.get_element_by_id("tagsmith_canvas"))
@@ -148,4 +152,53 @@ fn compare_from_address(
     studio.compare.chosen = families;
     studio.panel = crate::studio::Panel::Compare;
     crate::studio::compare::run_chosen(studio, ctx)
+}
+
+/// Fetches the files the module does not embed ([`tagsmith::assets::all`]: the font, the
+/// synthesis backgrounds, the samples; `scripts/build-web.sh` copies them to `assets/` beside
+/// the page) and hands them to the core. The page waits for them before the studio starts, the
+/// worker before it serves; every request is sent at once, so they download side by side.
+pub async fn load_assets() -> Result<(), String> {
+    use wasm_bindgen_futures::JsFuture;
+    let global = js_sys::global();
+    let fetch: js_sys::Function = js_sys::Reflect::get(&global, &"fetch".into())
+        .ok()
+        .and_then(|f| f.dyn_into().ok())
+        .ok_or("this browser has no fetch")?;
+    let paths: Vec<&str> = tagsmith::assets::all().collect();
+    let mut pending = Vec::new();
+    for path in &paths {
+        let url = format!("./assets/{path}");
+        let promise = fetch
+            .call1(&global, &url.as_str().into())
+            .map_err(|e| format!("{url}: {e:?}"))?;
+        pending.push((url, js_sys::Promise::from(promise)));
+    }
+    let mut files = Vec::new();
+    for (path, (url, promise)) in paths.iter().zip(pending) {
+        let response: web_sys::Response = JsFuture::from(promise)
+            .await
+            .and_then(|r| r.dyn_into())
+            .map_err(|e| format!("{url}: {e:?}"))?;
+        if !response.ok() {
+            return Err(format!("{url}: HTTP {}", response.status()));
+        }
+        let buffer = JsFuture::from(response.array_buffer().map_err(|e| format!("{url}: {e:?}"))?)
+            .await
+            .map_err(|e| format!("{url}: {e:?}"))?;
+        files.push((path.to_string(), js_sys::Uint8Array::new(&buffer).to_vec()));
+    }
+    tagsmith::assets::provide(files).map_err(|e| e.to_string())
+}
+
+/// Says on the page why the studio could not start (no canvas to draw it on yet).
+fn show_failure(message: &str) {
+    log::error!("{message}");
+    if let Some(body) = web_sys::window()
+        .and_then(|w| w.document())
+        .and_then(|d| d.body())
+    {
+        body.set_inner_html("");
+        let _ = body.append_with_str_1(message);
+    }
 }

@@ -5,6 +5,8 @@
 //! `tests/layers.rs`; the map is in `docs/ARCHITECTURE.md`).
 
 // Foundation.
+/// The data files read at run time (font, backgrounds): embedded, or fetched by the web page.
+pub mod assets;
 /// `#rrggbb` colours.
 pub mod color;
 /// Homographies, warping, the pinhole camera, rigid poses.

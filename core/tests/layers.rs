@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 /// Foundation first, then the pipeline.
 const LAYERS: &[&str] = &[
-    "problem", "io", "image", "color", "geometry", // foundation
+    "problem", "assets", "io", "image", "color", "geometry", // foundation
     "codebook", "family", "builtin", "render", "synth", "pose", "detect", "train", "eval",
 ];
 

@@ -8,7 +8,7 @@ use tagsmith_studio::studio::{detect, Panel};
 /// A bare name of one of the shipped samples (`--image aruco-6x6_250-tutorial.jpg`).
 fn is_sample(path: &std::path::Path) -> bool {
     let name = path.to_string_lossy();
-    detect::SAMPLES.iter().any(|(n, _)| *n == name)
+    detect::samples().any(|(n, _)| n == name)
 }
 
 /// The file `--image` names: a regular file of at most [`MAX_IMAGE_BYTES`] (a FIFO would block

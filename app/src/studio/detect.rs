@@ -9,21 +9,14 @@
 //! family file, so only the desktop offers it. The test scene and the video playback still run
 //! the detector on the UI thread.
 
-/// Sample photographs shipped in `assets/samples/` (sources and licences in its README).
-pub const SAMPLES: &[(&str, &[u8])] = &[
-    (
-        "aruco-6x6_250-tutorial.jpg",
-        include_bytes!("../../../assets/samples/aruco-6x6_250-tutorial.jpg"),
-    ),
-    (
-        "apriltag-36h11-swarmathon.jpg",
-        include_bytes!("../../../assets/samples/apriltag-36h11-swarmathon.jpg"),
-    ),
-    (
-        "apriltag-xo-36h11-synthetic.png",
-        include_bytes!("../../../assets/samples/apriltag-xo-36h11-synthetic.png"),
-    ),
-];
+/// The sample photographs shipped in `assets/samples/` (sources and licences in its README):
+/// (file name, bytes).
+pub fn samples() -> impl Iterator<Item = (&'static str, &'static [u8])> {
+    (tagsmith::assets::SAMPLES.iter()).map(|path| {
+        let name = path.rsplit('/').next().unwrap_or(path);
+        (name, tagsmith::assets::file(path))
+    })
+}
 
 use super::files::{OpenedFile, Purpose};
 use super::offload::{build_detector, shown, DetectRequest, Offload, Shown, Ticket};
@@ -532,9 +525,9 @@ pub fn open_pasted(studio: &mut Studio, text: &str) {
     }
 }
 
-/// Opens one of [`SAMPLES`] by file name; `false` when there is no such sample.
+/// Opens one of [`samples`] by file name; `false` when there is no such sample.
 pub fn open_sample(studio: &mut Studio, name: &str) -> bool {
-    let Some((name, bytes)) = SAMPLES.iter().find(|(n, _)| *n == name) else {
+    let Some((name, bytes)) = samples().find(|(n, _)| *n == name) else {
         return false;
     };
     open_image(
@@ -555,8 +548,8 @@ pub fn show(studio: &mut Studio, ui: &mut egui::Ui, ctx: &egui::Context) {
             studio.files.request_open(Purpose::Image);
         }
         ui.label("Samples:");
-        for (name, _) in SAMPLES {
-            if ui.button(*name).clicked() {
+        for (name, _) in samples() {
+            if ui.button(name).clicked() {
                 open_sample(studio, name);
             }
         }

@@ -8,13 +8,11 @@ use std::collections::HashMap;
 use std::sync::{Arc, OnceLock};
 use svg2pdf::usvg;
 
-/// The label font, embedded so that every machine produces the same PDF.
-static FONT: &[u8] = include_bytes!("../../../assets/fonts/DejaVuSans.ttf");
-
-/// The embedded label font (DejaVu Sans): the browser studio draws its text with it too, so the
-/// module carries one font rather than this and egui's own.
+/// The label font (DejaVu Sans), the same on every machine so that every machine produces the
+/// same PDF: the browser studio draws its text with it too, so the page loads one font rather
+/// than this and egui's own.
 pub fn label_font() -> &'static [u8] {
-    FONT
+    crate::assets::file(crate::assets::LABEL_FONT)
 }
 
 pub const PT_PER_MM: f64 = 72.0 / 25.4;
@@ -23,7 +21,7 @@ fn svg_options() -> &'static usvg::Options<'static> {
     static OPTIONS: OnceLock<usvg::Options<'static>> = OnceLock::new();
     OPTIONS.get_or_init(|| {
         let mut db = usvg::fontdb::Database::new();
-        db.load_font_data(FONT.to_vec());
+        db.load_font_data(label_font().to_vec());
         usvg::Options {
             fontdb: Arc::new(db),
             font_family: "DejaVu Sans".into(),

@@ -8,26 +8,13 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use std::sync::OnceLock;
 
-/// Embedded so that the synthesiser needs no files (the web build has none).
-const PHOTOS: [&[u8]; 8] = [
-    include_bytes!("../../../assets/backgrounds/astronaut.png"),
-    include_bytes!("../../../assets/backgrounds/brick.png"),
-    include_bytes!("../../../assets/backgrounds/camera.png"),
-    include_bytes!("../../../assets/backgrounds/chelsea.png"),
-    include_bytes!("../../../assets/backgrounds/coffee.png"),
-    include_bytes!("../../../assets/backgrounds/grass.png"),
-    include_bytes!("../../../assets/backgrounds/gravel.png"),
-    include_bytes!("../../../assets/backgrounds/rocket.png"),
-];
-
 fn photos() -> &'static [GrayImage] {
     static DECODED: OnceLock<Vec<GrayImage>> = OnceLock::new();
     DECODED.get_or_init(|| {
-        PHOTOS
-            .iter()
-            .map(|bytes| {
-                crate::image::decode(bytes, &Default::default())
-                    .expect("the embedded backgrounds are valid PNGs")
+        (crate::assets::BACKGROUNDS.iter())
+            .map(|path| {
+                crate::image::decode(crate::assets::file(path), &Default::default())
+                    .unwrap_or_else(|e| panic!("background {path}: {e}"))
             })
             .collect()
     })

@@ -176,7 +176,7 @@ mod tests {
     }
 
     fn request(families: &[&str]) -> DetectRequest {
-        let (_, bytes) = crate::studio::detect::SAMPLES[0];
+        let (_, bytes) = crate::studio::detect::samples().next().unwrap();
         let image = tagsmith::image::decode(bytes, &Default::default()).unwrap();
         DetectRequest {
             families: families.iter().map(|f| f.to_string()).collect(),

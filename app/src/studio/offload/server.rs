@@ -128,7 +128,7 @@ mod tests {
     use super::*;
 
     fn sample() -> GrayImage {
-        let (_, bytes) = crate::studio::detect::SAMPLES[0];
+        let (_, bytes) = crate::studio::detect::samples().next().unwrap();
         tagsmith::image::decode(bytes, &Default::default()).expect("the sample decodes")
     }
 

@@ -50,8 +50,21 @@ pub fn in_worker() -> bool {
         .is_ok()
 }
 
-/// The worker's main: answers each request in turn.
+/// The worker's main: loads the assets a comparison's scenes need, then answers each request in
+/// turn.
 pub fn serve_in_worker() {
+    wasm_bindgen_futures::spawn_local(async {
+        // Detection needs none of them: a worker without them still detects, and says why it
+        // cannot compare.
+        let assets = crate::web::load_assets().await;
+        if let Err(e) = &assets {
+            log::error!("the worker could not load the studio's files: {e}");
+        }
+        serve(assets);
+    });
+}
+
+fn serve(assets: Result<(), String>) {
     let scope: web_sys::DedicatedWorkerGlobalScope = js_sys::global().unchecked_into();
     let server = RefCell::new(Server::default());
     let reply_to = scope.clone();
@@ -69,9 +82,12 @@ pub fn serve_in_worker() {
                     });
                 }
                 Ok(ToWorker::Compare(request)) => {
-                    let outcome = compare::run_shipped(request, |snapshot| {
-                        post(&FromWorker::Compared { ticket, snapshot })
-                    });
+                    let outcome = match &assets {
+                        Ok(()) => compare::run_shipped(request, |snapshot| {
+                            post(&FromWorker::Compared { ticket, snapshot })
+                        }),
+                        Err(e) => Err(format!("the studio's files did not load: {e}")),
+                    };
                     post(&FromWorker::Ended { ticket, outcome });
                 }
                 Err(e) => post(&FromWorker::Detected {

@@ -39,7 +39,8 @@ const SHIPPED: &[(&str, &[u8])] = &[
         include_bytes!("../../../../assets/models/apriltag-xo-36h11.stage2.bin"),
     ),
     ("aruco-6x6_250", GRID_8_BLACK_WHITE),
-    // Never trained on: the same layout as the two above, read with its own codebook.
+    // Never trained on: the same layout as the two above, each read with its own codebook.
+    ("aruco-mip-36h12", GRID_8_BLACK_WHITE),
     ("artoolkitplus-bch", GRID_8_BLACK_WHITE),
 ];
 

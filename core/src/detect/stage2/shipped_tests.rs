@@ -32,6 +32,11 @@ fn the_grid_model_decodes_artoolkitplus_markers_it_was_not_trained_on() {
     decodes_noisy_markers("artoolkitplus-bch");
 }
 
+#[test]
+fn the_grid_model_decodes_aruco_mip_markers_it_was_not_trained_on() {
+    decodes_noisy_markers("aruco-mip-36h12");
+}
+
 /// One 5 cm marker seen by a pinhole camera in the distance and view-angle ranges, with this
 /// sensor noise and blur, and no spotlight, motion blur or lens distortion: the network's
 /// reading alone decides what is read.
