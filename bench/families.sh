@@ -31,7 +31,9 @@ for family in $families; do
     ROWS='normal|difficult|noise' bench/side_by_side.sh "$set_dir" "$out/$family" >"$out/$family.log"
     base=$(ls "$out/$family"-report-apriltag/report.md 2>/dev/null || ls "$out/$family"-report-opencv/report.md)
     name=$(basename "$(dirname "$base")" | sed "s/^$family-report-//")
-    paired=$(grep -E "^\| difficult" "$out/$family.log" | tail -1 | awk -F'|' '{ gsub(/^ +| +$/, "", $8); gsub(/^ +| +$/, "", $9); print $8 " (" $9 ")" }')
+    # The recall row of the paired comparison, which follows its heading (pose rows come after).
+    paired=$(awk -F'|' '/^== Tagsmith \(A\) vs/ { on = 1 } on && /^\| difficult/ {
+      gsub(/^ +| +$/, "", $8); gsub(/^ +| +$/, "", $9); print $8 " (" $9 ")"; exit }' "$out/$family.log")
     base_row=$(row "$base" difficult)
   else
     $T detect-set "$set_dir" --full -o "$out/$family-tagsmith.json" >/dev/null
