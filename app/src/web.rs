@@ -183,9 +183,13 @@ pub async fn load_assets() -> Result<(), String> {
         if !response.ok() {
             return Err(format!("{url}: HTTP {}", response.status()));
         }
-        let buffer = JsFuture::from(response.array_buffer().map_err(|e| format!("{url}: {e:?}"))?)
-            .await
-            .map_err(|e| format!("{url}: {e:?}"))?;
+        let buffer = JsFuture::from(
+            response
+                .array_buffer()
+                .map_err(|e| format!("{url}: {e:?}"))?,
+        )
+        .await
+        .map_err(|e| format!("{url}: {e:?}"))?;
         files.push((path.to_string(), js_sys::Uint8Array::new(&buffer).to_vec()));
     }
     tagsmith::assets::provide(files).map_err(|e| e.to_string())

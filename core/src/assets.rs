@@ -121,12 +121,18 @@ mod tests {
 
     #[test]
     fn every_listed_asset_is_embedded_and_is_what_its_name_says() {
-        assert!(file(LABEL_FONT).starts_with(&[0, 1, 0, 0]), "a TrueType font");
+        assert!(
+            file(LABEL_FONT).starts_with(&[0, 1, 0, 0]),
+            "a TrueType font"
+        );
         for path in BACKGROUNDS.iter().copied() {
             assert!(file(path).starts_with(b"\x89PNG"), "{path}");
         }
         for path in SAMPLES.iter().copied() {
-            assert!(crate::image::decode(file(path), &Default::default()).is_ok(), "{path}");
+            assert!(
+                crate::image::decode(file(path), &Default::default()).is_ok(),
+                "{path}"
+            );
         }
         assert_eq!(all().count(), 12);
     }

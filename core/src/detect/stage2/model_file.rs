@@ -109,10 +109,32 @@ pub fn from_bytes(
     family: &Family,
     device: &Device,
 ) -> Result<(Stage2Net, ModelHeader), ModelError> {
+    load_checked(bytes, path, family, device, true)
+}
+
+/// The weights of a model to fine-tune for `family`, which may have another layout than the one
+/// they learned (a user's 7 × 7 grid from the 8 × 8 grid model): the network's shape is what must
+/// fit, its classes (the family's categories) and patch side. Reading with them takes training.
+pub fn to_fine_tune(
+    bytes: &[u8],
+    path: &str,
+    family: &Family,
+    device: &Device,
+) -> Result<(Stage2Net, ModelHeader), ModelError> {
+    load_checked(bytes, path, family, device, false)
+}
+
+fn load_checked(
+    bytes: &[u8],
+    path: &str,
+    family: &Family,
+    device: &Device,
+    same_layout: bool,
+) -> Result<(Stage2Net, ModelHeader), ModelError> {
     let (header, start) = read_header(bytes, path)?;
     // The weights fit any family with the layout they learned, whatever its name: the codebook
     // only decodes what they read.
-    if header.family_hash != family_hash(family) {
+    if same_layout && header.family_hash != family_hash(family) {
         if header.family != family.name() {
             return Err(ModelError::WrongFamily {
                 path: path.into(),
