@@ -903,6 +903,8 @@ fn the_train_panel_trains_stops_resumes_and_attaches_the_model() {
         width: 8,
         ..Settings::default()
     };
+    // From fresh weights (the panel would otherwise start a 16h5 design from the grid model).
+    h.state_mut().train.fine_tune_chosen = true;
     h.run();
     h.get_by_label("Start").click();
     h.run();
@@ -1173,4 +1175,59 @@ fn the_compare_panel_runs_a_sweep_and_the_command_line_agrees() {
     for plot in ["distance-recall.svg", "distance-rotation.svg", "report.md"] {
         assert!(out.join(plot).is_file(), "{plot}");
     }
+}
+
+/// Train panel: a design of two categories starts from the shipped grid model (a fine-tune at
+/// its own steps and learning rate, the model's width); a design the grid model does not fit
+/// (four categories) trains from fresh weights; unticking goes back to the fresh defaults.
+#[test]
+fn the_train_panel_fine_tunes_a_grid_design_from_the_shipped_grid_model() {
+    use tagsmith_studio::studio::train::{Settings, FINE_TUNE_STEPS};
+    let s = setup();
+    let mut h = studio(&s);
+    duplicate(&mut h, "apriltag-16h5");
+    h.get_by_label("Train").click();
+    h.run();
+    h.state_mut().save();
+    h.run();
+    let settings = h.state().train.settings.clone();
+    assert!(settings.fine_tune);
+    assert_eq!(settings.steps, FINE_TUNE_STEPS);
+    // Fresh weights when asked, with the fresh defaults; and back.
+    h.get_by_label("the shipped grid model (fine-tune)").click();
+    h.run();
+    assert_eq!(h.state().train.settings, Settings::default());
+    h.get_by_label("the shipped grid model (fine-tune)").click();
+    h.run();
+    assert!(h.state().train.settings.fine_tune);
+    h.state_mut().train.settings.steps = 3;
+    h.state_mut().train.settings.batch = 2;
+    h.run();
+    h.get_by_label("Start").click();
+    h.run();
+    run_until(&mut h, "the fine-tune", |st| {
+        !st.train.is_running() && st.train.outcome.is_some()
+    });
+    let outcome = h.state().train.outcome.clone().unwrap();
+    assert!(outcome.is_ok(), "{outcome:?}");
+    let runs = s.user.with_file_name("runs");
+    let run_dir = std::fs::read_dir(&runs)
+        .unwrap()
+        .next()
+        .unwrap()
+        .unwrap()
+        .path();
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(run_dir.join("report.json")).unwrap()).unwrap();
+    let started = report["started_from"].as_str().unwrap_or_default();
+    assert!(started.contains("grid-8-bw.stage2.bin"), "{report}");
+
+    // Four categories: the grid model's network does not fit; fresh weights.
+    h.get_by_label("Families").click();
+    h.run();
+    duplicate(&mut h, "quaternary-6x6");
+    h.get_by_label("Train").click();
+    h.run();
+    assert!(!h.state().train.settings.fine_tune);
+    assert_eq!(h.state().train.settings.steps, Settings::default().steps);
 }

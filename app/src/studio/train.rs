@@ -39,6 +39,7 @@ mod desktop {
     use std::sync::atomic::{AtomicBool, Ordering};
     use std::sync::{Arc, Mutex};
     use std::time::Instant;
+    use tagsmith::detect::stage2::fine_tune_start;
     use tagsmith::detect::stage2::model_file::{MAX_STEPS, WIDTHS};
     use tagsmith::family::Family;
     use tagsmith::train::stage::{Picture, TrainStage};
@@ -60,13 +61,21 @@ mod desktop {
         pub batch: usize,
         pub width: usize,
         pub learning_rate: f64,
+        /// Stage 2 starts from the shipped grid model ([`fine_tune_start`]) where the design's
+        /// network fits it, at [`FINE_TUNE_STEPS`] and [`FINE_TUNE_LEARNING_RATE`].
+        pub fine_tune: bool,
         /// Where the run writes its checkpoints, model and report; empty: the default folder
         /// beside the user's families ([`run_folder`]).
         pub folder: String,
     }
 
+    /// A fine-tune's steps and learning rate: the shipped grid model's own (3000 steps at
+    /// 0.0003 from 36h11's weights, BENCHMARKS.md "One model for one layout").
+    pub const FINE_TUNE_STEPS: u64 = 3000;
+    pub const FINE_TUNE_LEARNING_RATE: f64 = 0.0003;
+
     impl Default for Settings {
-        /// The shipped stage-2 models' settings.
+        /// The shipped stage-2 models' settings, from fresh weights.
         fn default() -> Self {
             let c = TrainConfig::default();
             Self {
@@ -75,8 +84,23 @@ mod desktop {
                 batch: c.batch,
                 width: c.width,
                 learning_rate: c.learning_rate,
+                fine_tune: false,
                 folder: String::new(),
             }
+        }
+    }
+
+    impl Settings {
+        /// Fine-tuning from the shipped grid model, or (`false`) training from fresh weights:
+        /// each with its own steps and learning rate.
+        pub fn set_fine_tune(&mut self, on: bool) {
+            let fresh = Self::default();
+            self.fine_tune = on;
+            (self.steps, self.learning_rate) = if on {
+                (FINE_TUNE_STEPS, FINE_TUNE_LEARNING_RATE)
+            } else {
+                (fresh.steps, fresh.learning_rate)
+            };
         }
     }
 
@@ -243,6 +267,8 @@ mod desktop {
         pub confirm_start_over: bool,
         /// The UI's recent frame times (ms) while a run trains: their median is shown.
         pub frame_times: std::collections::VecDeque<f32>,
+        /// The user chose between fine-tuning and fresh weights: the panel stops choosing.
+        pub fine_tune_chosen: bool,
     }
 
     impl TrainState {
@@ -410,6 +436,7 @@ mod desktop {
         };
         let family_file = design.path.clone();
         let settings = studio.train.settings.clone();
+        let stage = settings.stage;
         let out = run_folder(studio, family.name(), settings.stage);
         let config = TrainConfig {
             steps: settings.steps,
@@ -435,7 +462,7 @@ mod desktop {
                     live: &live,
                     reporter,
                 };
-                run(&family, settings.stage, with)
+                run(&family, &settings, with)
             })
         };
         studio.train.outcome = None;
@@ -445,7 +472,7 @@ mod desktop {
             live,
             stop,
             out: out.clone(),
-            family_file: (settings.stage == StageChoice::Keypoints)
+            family_file: (stage == StageChoice::Keypoints)
                 .then_some(family_file)
                 .flatten(),
         });
@@ -462,15 +489,24 @@ mod desktop {
         reporter: &'a super::super::job::Reporter,
     }
 
-    fn run(family: &Family, stage: StageChoice, with: RunWith) -> Result<String, String> {
-        match stage {
-            StageChoice::Keypoints => go(KeypointStage::new(family, with.config.width), with),
+    fn run(family: &Family, settings: &Settings, with: RunWith) -> Result<String, String> {
+        match settings.stage {
+            StageChoice::Keypoints => {
+                let stage = KeypointStage::new(family, with.config.width);
+                match fine_tune_start(family).filter(|_| settings.fine_tune) {
+                    Some(start) => go(stage.starting_from(start.to_vec(), SHIPPED_GRID)?, with),
+                    None => go(stage, with),
+                }
+            }
             StageChoice::Roi => go(
                 RoiStage::for_families(vec![family.clone()], with.config.width),
                 with,
             ),
         }
     }
+
+    /// The name a fine-tune's report gives the model it started from.
+    const SHIPPED_GRID: &str = "the shipped grid model (assets/models/grid-8-bw.stage2.bin)";
 
     fn go<S: TrainStage>(stage: S, w: RunWith) -> Result<String, String> {
         let report = train::train(
@@ -516,7 +552,15 @@ mod desktop {
             .as_ref()
             .map(|d| d.spec().name.clone())
             .unwrap_or_default();
+        let fine_tunable = (studio.design.as_ref())
+            .and_then(|d| d.validation().as_ref().ok())
+            .is_some_and(|f| fine_tune_start(f).is_some());
+        let chosen = &mut studio.train.fine_tune_chosen;
         let s = &mut studio.train.settings;
+        // A design the grid model fits starts from it, until the user says otherwise.
+        if !running && s.fine_tune != fine_tunable && (!*chosen || !fine_tunable) {
+            s.set_fine_tune(fine_tunable);
+        }
         ui.add_enabled_ui(!running, |ui| {
             egui::Grid::new("train-settings")
                 .num_columns(2)
@@ -531,6 +575,24 @@ mod desktop {
                         );
                     });
                     ui.end_row();
+                    if s.stage == StageChoice::Keypoints {
+                        ui.label("Start from");
+                        let mut on = s.fine_tune;
+                        let response = ui
+                            .add_enabled(
+                                fine_tunable,
+                                egui::Checkbox::new(&mut on, "the shipped grid model (fine-tune)"),
+                            )
+                            .on_disabled_hover_text(
+                                "fresh weights: the grid model's network has two categories and \
+                                 its own patch side",
+                            );
+                        if response.changed() {
+                            s.set_fine_tune(on);
+                            *chosen = true;
+                        }
+                        ui.end_row();
+                    }
                     let label = ui.label("Steps");
                     ui.add(egui::DragValue::new(&mut s.steps).range(1..=MAX_STEPS))
                         .labelled_by(label.id);
@@ -540,7 +602,9 @@ mod desktop {
                         .labelled_by(label.id);
                     ui.end_row();
                     let label = ui.label("Width");
-                    ui.add(egui::DragValue::new(&mut s.width).range(WIDTHS))
+                    // A fine-tune keeps the model's width.
+                    let fresh = !(s.fine_tune && s.stage == StageChoice::Keypoints);
+                    ui.add_enabled(fresh, egui::DragValue::new(&mut s.width).range(WIDTHS))
                         .labelled_by(label.id);
                     ui.end_row();
                     let label = ui.label("Learning rate");

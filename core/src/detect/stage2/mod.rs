@@ -56,6 +56,19 @@ pub fn shipped_families() -> impl Iterator<Item = &'static str> {
 /// default family may cost (BENCHMARKS.md, "Every family detecting"); it is read when named.
 pub const DEFAULT_FAMILIES: &[&str] = &["apriltag-36h11", "apriltag-xo-36h11", "aruco-6x6_250"];
 
+/// The shipped model a new design's stage 2 can be fine-tuned from: the grid model, for a
+/// family of two categories whose patch is the grid model's (a black/white grid of any size),
+/// where its network fits ([`model_file::to_fine_tune`]). What it
+/// learned of cells and frames carries over, so a few thousand steps do what a fresh network
+/// needs ten thousand for (BENCHMARKS.md, "Every family detecting").
+#[cfg(feature = "detect")]
+pub fn fine_tune_start(family: &crate::Family) -> Option<&'static [u8]> {
+    let (header, _) = model_file::read_header(GRID_8_BLACK_WHITE, "grid-8-bw.stage2.bin").ok()?;
+    let patch = anchors::PatchSpec::for_family(family).size as usize;
+    (header.net.classes == family.categories().len() + 1 && header.net.patch == patch)
+        .then_some(GRID_8_BLACK_WHITE)
+}
+
 /// The shipped stage-2 model file of a built-in family, if it has one.
 pub fn shipped_model(family: &str) -> Option<&'static [u8]> {
     SHIPPED

@@ -147,3 +147,18 @@ fn reliability_is_the_share_among_admitted_categories() {
         .enumerate()
         .all(|(i, &r)| i == code_slot || r == 0.0));
 }
+
+/// A new design of two categories starts from the shipped grid model wherever its network fits
+/// (any grid size); more categories (XO's frame and two glyphs, quaternary cells) need a network
+/// of their own.
+#[cfg(feature = "detect")]
+#[test]
+fn two_category_designs_fine_tune_from_the_grid_model_and_others_do_not() {
+    let get = |name: &str| builtin::get(name).unwrap().unwrap();
+    for name in ["apriltag-16h5", "aruco-5x5_100", "apriltag-36h11"] {
+        assert!(super::fine_tune_start(&get(name)).is_some(), "{name}");
+    }
+    for name in ["apriltag-xo-36h11", "quaternary-6x6"] {
+        assert!(super::fine_tune_start(&get(name)).is_none(), "{name}");
+    }
+}
