@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Every detector on one benchmark set, scored by the same code: the baselines that know the set's
-# family (AprilTag 3 for AprilTag 36h11, OpenCV ArUco for both), Tagsmith's whole-image detector,
-# each scored by `tagsmith eval score`, then Tagsmith against the family's own baseline marker by
+# family (AprilTag 3 for the AprilTag families it has, OpenCV ArUco for the dictionaries it has),
+# Tagsmith's whole-image detector, each scored by `tagsmith eval score`, then Tagsmith against the family's own baseline marker by
 # marker (`tagsmith eval compare`). Used by bench/difficult.sh and bench/foreign.sh.
 #   bench/side_by_side.sh SET_DIR OUT_PREFIX
 # writes OUT_PREFIX-{tagsmith,apriltag,opencv}.json and OUT_PREFIX-report-*; ROWS= 'normal|difficult'
@@ -17,7 +17,8 @@ PY=bench/.venv/bin/python
 family=$($PY -c 'import json, sys; print(json.load(open(sys.argv[1]))["family"])' "$set_dir/set.json")
 detectors="opencv"
 base=opencv
-if [ "$family" = apriltag-36h11 ]; then
+# AprilTag 3 where it has the family (bench/baselines.py's table), and then it is the baseline.
+if $PY -c 'import sys; sys.path[:0] = ["bench"]; from baselines import FAMILIES; sys.exit(FAMILIES.get(sys.argv[1], (0, None))[1] is None)' "$family"; then
   detectors="apriltag opencv"
   base=apriltag
 fi

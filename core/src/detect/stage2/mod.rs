@@ -31,13 +31,26 @@ pub use pipeline::{ReadOptions, Stage2, Stage2Result};
 /// model for one layout").
 const GRID_8_BLACK_WHITE: &[u8] = include_bytes!("../../../../assets/models/grid-8-bw.stage2.bin");
 
+/// The 6 × 6 black-and-white grid's weights (4 × 4 data cells), fine-tuned from the 8 × 8 grid's
+/// on AprilTag 16h5's and ArUco 4x4_50's codes together (BENCHMARKS.md, "Every family
+/// detecting").
+const GRID_6_BLACK_WHITE: &[u8] = include_bytes!("../../../../assets/models/grid-6-bw.stage2.bin");
+
+/// The 7 × 7 grid's (5 × 5 data cells), fine-tuned the same way on AprilTag 25h9's and ArUco
+/// 5x5_100's codes.
+const GRID_7_BLACK_WHITE: &[u8] = include_bytes!("../../../../assets/models/grid-7-bw.stage2.bin");
+
 /// Stage-2 weights shipped in `assets/models/` for built-in families, by family name.
 const SHIPPED: &[(&str, &[u8])] = &[
+    ("apriltag-16h5", GRID_6_BLACK_WHITE),
+    ("apriltag-25h9", GRID_7_BLACK_WHITE),
     ("apriltag-36h11", GRID_8_BLACK_WHITE),
     (
         "apriltag-xo-36h11",
         include_bytes!("../../../../assets/models/apriltag-xo-36h11.stage2.bin"),
     ),
+    ("aruco-4x4_50", GRID_6_BLACK_WHITE),
+    ("aruco-5x5_100", GRID_7_BLACK_WHITE),
     ("aruco-6x6_250", GRID_8_BLACK_WHITE),
     // Never trained on: the same layout as the two above, each read with its own codebook.
     ("aruco-mip-36h12", GRID_8_BLACK_WHITE),
