@@ -310,7 +310,7 @@ impl CellReader {
     }
 
     /// [`CellReader::read`], saying on a failed read whether the frame fitted.
-    pub fn read_or_frame(
+    fn read_or_frame(
         &self,
         family: &Family,
         image: &GrayImage,

@@ -64,9 +64,9 @@ pub fn shipped_families() -> impl Iterator<Item = &'static str> {
 
 /// The families a detection reads when none are named (`tagsmith detect`, the Detect panel's
 /// ticks, the Python `Detector`): a short list, not every family with weights, because each
-/// further family costs time on every image. ARToolKitPlus, on the grid model already loaded,
-/// added a median of about a fifth to the three's time on real photographs, over the ≤ 20 % a
-/// default family may cost (BENCHMARKS.md, "Every family detecting"); it is read when named.
+/// further family costs its decoding, alignment and cell reads on every image, even where it
+/// shares the network's passes (BENCHMARKS.md, "Every family detecting", has the cost); the
+/// others are read when named.
 pub const DEFAULT_FAMILIES: &[&str] = &["apriltag-36h11", "apriltag-xo-36h11", "aruco-6x6_250"];
 
 /// The shipped model a new design's stage 2 can be fine-tuned from: the grid model, for a
