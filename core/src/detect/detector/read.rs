@@ -49,13 +49,25 @@ impl FamilyReader {
         roi_score: f64,
         params: &AcceptParams,
     ) -> bool {
-        let limit = self.family.codebook().max_correction();
+        let limit = self.correction_limit(params);
         let fits = |max: f64| self.rms_pitch(m).is_none_or(|rms| rms <= max);
-        m.corrected_errors <= trust.allowed(limit, roi_score, params.weak_roi_score)
+        m.corrected_errors <= limit
+            && m.corrected_errors <= trust.allowed(limit, roi_score, params.weak_roi_score)
             && (m.corrected_errors <= limit / 2
                 || (m.passes_agree
                     && fits(params.max_weak_read_rms_pitch)
                     && (!m.from_keypoints || fits(params.max_keypoint_read_rms_pitch))))
+    }
+
+    /// The most corrected symbols a read of the family may need: the codebook's limit, or none
+    /// for a code too short to correct ([`AcceptParams::min_symbols_to_correct`]).
+    pub(super) fn correction_limit(&self, params: &AcceptParams) -> usize {
+        let codebook = self.family.codebook();
+        if codebook.code_len() < params.min_symbols_to_correct {
+            0
+        } else {
+            codebook.max_correction()
+        }
     }
 
     /// The read's keypoint reprojection RMS from its pose, in cell pitches in the image (`None`
@@ -301,7 +313,7 @@ impl Detector {
                         }
                         let frame = *frames[frame_of[k]]
                             .get_or_insert_with(|| cells.frame(image, &proposal.corners));
-                        let limit = reader.family.codebook().max_correction() / 2;
+                        let limit = reader.correction_limit(&self.options.accept) / 2;
                         let cell_read =
                             match cells.read_fitted(&reader.family, image, frame.as_ref(), limit) {
                                 CellOutcome::Read(read) => read,

@@ -227,6 +227,11 @@ pub struct AcceptParams {
     /// corrections: keypoints sorted a cell off place a frame that reads another code, and both
     /// passes from it may agree.
     pub max_keypoint_read_rms_pitch: f64,
+    /// A code of fewer symbols than this is read only as it is, without corrections: with 16
+    /// bits and 30 to 50 codes (AprilTag 16h5, ArUco 4x4_50) a quad of clutter decodes within a
+    /// correction or two often enough to matter, where codes of 25 bits and more do not
+    /// (BENCHMARKS.md, "Every family detecting").
+    pub min_symbols_to_correct: usize,
 }
 
 impl Default for AcceptParams {
@@ -235,6 +240,7 @@ impl Default for AcceptParams {
             weak_roi_score: 0.3,
             max_weak_read_rms_pitch: 0.25,
             max_keypoint_read_rms_pitch: 0.1,
+            min_symbols_to_correct: 20,
         }
     }
 }

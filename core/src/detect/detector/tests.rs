@@ -83,6 +83,48 @@ fn a_read_from_a_failed_passs_keypoints_needing_many_corrections_must_fit_its_po
     ));
 }
 
+/// A 16-bit code is read only as it is, however well its ROI scored; 25-bit codes are still
+/// corrected.
+#[test]
+fn codes_too_short_to_correct_are_read_only_without_corrections() {
+    let params = AcceptParams::default();
+    let reader =
+        |name: &str| FamilyReader::shipped(crate::builtin::get(name).unwrap().unwrap()).unwrap();
+    let read = |corrected_errors: usize| Stage2Result {
+        id: 3,
+        rotation_deg: 0.0,
+        corrected_errors,
+        fixed_mismatches: 0,
+        corners: [[0.0, 0.0], [100.0, 0.0], [100.0, 100.0], [0.0, 100.0]],
+        keypoints: Vec::new(),
+        missing: 0,
+        iterations: 2,
+        passes_agree: true,
+        from_keypoints: false,
+        refinement: None,
+        pose: None,
+    };
+    for name in ["apriltag-16h5", "aruco-4x4_50"] {
+        let short = reader(name);
+        assert!(
+            short.accepts(&read(0), Trust::First, 0.9, &params),
+            "{name}"
+        );
+        assert!(
+            !short.accepts(&read(1), Trust::First, 0.9, &params),
+            "{name}"
+        );
+    }
+    let longer = reader("apriltag-25h9");
+    assert!(longer.accepts(&read(1), Trust::First, 0.9, &params));
+    // The bar is a setting.
+    let lenient = AcceptParams {
+        min_symbols_to_correct: 16,
+        ..params
+    };
+    assert!(reader("apriltag-16h5").accepts(&read(1), Trust::First, 0.9, &lenient));
+}
+
 fn found_at(corners: [[f64; 2]; 4], id: usize, corrections: usize, rms_pitch: f64) -> Found {
     Found {
         family: "apriltag-36h11".into(),
