@@ -76,9 +76,15 @@ pub const DEFAULT_FAMILIES: &[&str] = &["apriltag-36h11", "apriltag-xo-36h11", "
 /// needs ten thousand for (BENCHMARKS.md, "Every family detecting").
 #[cfg(feature = "detect")]
 pub fn fine_tune_start(family: &crate::Family) -> Option<&'static [u8]> {
-    let (header, _) = model_file::read_header(GRID_8_BLACK_WHITE, "grid-8-bw.stage2.bin").ok()?;
-    let patch = anchors::PatchSpec::for_family(family).size as usize;
-    (header.net.classes == family.categories().len() + 1 && header.net.patch == patch)
+    const NAME: &str = "grid-8-bw.stage2.bin";
+    // Read once: the Train panel asks on every frame.
+    static GRID_NET: std::sync::OnceLock<Option<net::NetConfig>> = std::sync::OnceLock::new();
+    let grid = GRID_NET.get_or_init(|| {
+        let (header, _) = model_file::read_header(GRID_8_BLACK_WHITE, NAME).ok()?;
+        Some(header.net)
+    });
+    model_file::check_network(grid.as_ref()?, NAME, family)
+        .is_ok()
         .then_some(GRID_8_BLACK_WHITE)
 }
 

@@ -124,6 +124,33 @@ pub fn to_fine_tune(
     load_checked(bytes, path, family, device, false)
 }
 
+/// Whether a network of `net`'s shape fits `family`: its classes (the family's categories and
+/// the background) and its patch side, whatever layout it learned.
+pub fn check_network(net: &NetConfig, path: &str, family: &Family) -> Result<(), ModelError> {
+    let classes = family.categories().len() + 1;
+    if net.classes != classes {
+        return Err(ModelError::bad_field(
+            path,
+            "net.classes",
+            net.classes,
+            format!(
+                "{classes} (the family's {} categories and the background)",
+                classes - 1
+            ),
+        ));
+    }
+    let patch = super::anchors::PatchSpec::for_family(family).size as usize;
+    if net.patch != patch {
+        return Err(ModelError::bad_field(
+            path,
+            "net.patch",
+            net.patch,
+            format!("{patch} (the patch side of family {:?})", family.name()),
+        ));
+    }
+    Ok(())
+}
+
 fn load_checked(
     bytes: &[u8],
     path: &str,
@@ -147,27 +174,7 @@ fn load_checked(
             family: family.name().into(),
         });
     }
-    let classes = family.categories().len() + 1;
-    if header.net.classes != classes {
-        return Err(ModelError::bad_field(
-            path,
-            "net.classes",
-            header.net.classes,
-            format!(
-                "{classes} (the family's {} categories and the background)",
-                classes - 1
-            ),
-        ));
-    }
-    let patch = super::anchors::PatchSpec::for_family(family).size as usize;
-    if header.net.patch != patch {
-        return Err(ModelError::bad_field(
-            path,
-            "net.patch",
-            header.net.patch,
-            format!("{patch} (the patch side of family {:?})", family.name()),
-        ));
-    }
+    check_network(&header.net, path, family)?;
     let weights = checked_weights(bytes, start, &header.weights_fnv, path)?;
     let net = header.net.init(device);
     let network = || {
