@@ -6,6 +6,7 @@ format `tagsmith eval score` reads (see core/src/eval/mod.rs).
     bench/.venv/bin/python bench/baselines.py SET_DIR --detector opencv -o opencv.json
     bench/.venv/bin/python bench/baselines.py SET_DIR --detector apriltag -o apriltag.json
     tagsmith eval score SET_DIR opencv.json
+    bench/.venv/bin/python bench/baselines.py --detectors FAMILY   # which of them read FAMILY
 
 Conventions are normalised to Tagsmith's (= OpenCV's): corners are the outer black square's TL,
 TR, BR, BL as OpenCV renders the marker, pixel centres at integer coordinates. OpenCV's ArUco
@@ -120,5 +121,15 @@ def main():
     os._exit(0)
 
 
+def detectors(family):
+    """The baselines that read `family`, the first its own (AprilTag 3 where it has the family)."""
+    if family not in FAMILIES:
+        return []
+    return (["apriltag"] if FAMILIES[family][1] else []) + ["opencv"]
+
+
 if __name__ == "__main__":
-    main()
+    if len(sys.argv) == 3 and sys.argv[1] == "--detectors":
+        print(" ".join(detectors(sys.argv[2])))
+    else:
+        main()

@@ -6,8 +6,8 @@
 # Needs bench/.venv (bench/setup.sh) and a release build:
 #   cargo build --release && bench/families.sh OUT_DIR [SEED] [PER_CELL]
 # PER_CELL=20 gives 700 Normal and 1300 Difficult markers per family (≈ 6 minutes a family here);
-# FAMILIES="a b" picks some. Baselines: bench/side_by_side.sh (AprilTag 3 for 36h11, OpenCV for
-# the dictionaries it has); a family no baseline reads gets Tagsmith's rows alone.
+# FAMILIES="a b" picks some. Baselines: bench/side_by_side.sh (AprilTag 3 for the AprilTag
+# families it has, OpenCV for the dictionaries it has); a family no baseline reads gets Tagsmith's rows alone.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out=${1:?usage: bench/families.sh OUT_DIR [SEED] [PER_CELL]}
@@ -27,7 +27,7 @@ for family in $families; do
   set_dir="$out/$family"
   [ -f "$set_dir/set.json" ] ||
     $T eval generate "$family" --seed "$seed" --per-cell "$per_cell" -o "$set_dir" >/dev/null
-  if $PY -c 'import sys; sys.path[:0] = ["bench"]; from baselines import FAMILIES; sys.exit(sys.argv[1] not in FAMILIES)' "$family"; then
+  if [ -n "$($PY bench/baselines.py --detectors "$family")" ]; then
     ROWS='normal|difficult|noise' bench/side_by_side.sh "$set_dir" "$out/$family" >"$out/$family.log"
     base=$(ls "$out/$family"-report-apriltag/report.md 2>/dev/null || ls "$out/$family"-report-opencv/report.md)
     name=$(basename "$(dirname "$base")" | sed "s/^$family-report-//")

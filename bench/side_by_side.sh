@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Every detector on one benchmark set, scored by the same code: the baselines that know the set's
 # family (AprilTag 3 for the AprilTag families it has, OpenCV ArUco for the dictionaries it has),
-# Tagsmith's whole-image detector, each scored by `tagsmith eval score`, then Tagsmith against the family's own baseline marker by
-# marker (`tagsmith eval compare`). Used by bench/difficult.sh and bench/foreign.sh.
+# Tagsmith's whole-image detector, each scored by `tagsmith eval score`, then Tagsmith against the
+# family's own baseline marker by marker (`tagsmith eval compare`). Used by bench/difficult.sh,
+# bench/foreign.sh and bench/families.sh.
 #   bench/side_by_side.sh SET_DIR OUT_PREFIX
 # writes OUT_PREFIX-{tagsmith,apriltag,opencv}.json and OUT_PREFIX-report-*; ROWS= 'normal|difficult'
 # (the default) picks the scored rows printed; TAGSMITH=path/to/tagsmith runs another build.
@@ -15,13 +16,10 @@ T=${TAGSMITH:-target/release/tagsmith}
 PY=bench/.venv/bin/python
 
 family=$($PY -c 'import json, sys; print(json.load(open(sys.argv[1]))["family"])' "$set_dir/set.json")
-detectors="opencv"
-base=opencv
-# AprilTag 3 where it has the family (bench/baselines.py's table), and then it is the baseline.
-if $PY -c 'import sys; sys.path[:0] = ["bench"]; from baselines import FAMILIES; sys.exit(FAMILIES.get(sys.argv[1], (0, None))[1] is None)' "$family"; then
-  detectors="apriltag opencv"
-  base=apriltag
-fi
+# AprilTag 3 where it has the family, OpenCV otherwise; the first is the baseline compared with.
+detectors=$($PY bench/baselines.py --detectors "$family")
+base=${detectors%% *}
+[ -n "$base" ] || { echo "$family: no baseline reads it (bench/baselines.py)" >&2; exit 2; }
 for d in $detectors; do
   # To a log, not /dev/null: pupil-apriltags under this venv segfaults writing to /dev/null
   # (2026-12-02; the same run to a file is fine).
