@@ -49,6 +49,22 @@ fn duplicate(h: &mut Harness<'static, Studio>, builtin: &str) {
     assert_eq!(h.state().panel, Panel::Designer);
 }
 
+/// The Train panel's first run folder (beside the user's families).
+fn first_run_folder(s: &Setup) -> PathBuf {
+    let runs = s.user.with_file_name("runs");
+    std::fs::read_dir(&runs)
+        .unwrap()
+        .next()
+        .unwrap()
+        .unwrap()
+        .path()
+}
+
+/// A run folder's report.
+fn run_report(run_dir: &Path) -> serde_json::Value {
+    serde_json::from_slice(&std::fs::read(run_dir.join("report.json")).unwrap()).unwrap()
+}
+
 /// Frames until `done` holds (background work such as codebook generation).
 fn run_until(h: &mut Harness<'static, Studio>, what: &str, done: impl Fn(&Studio) -> bool) {
     let start = Instant::now();
@@ -964,13 +980,7 @@ fn the_train_panel_trains_stops_resumes_and_attaches_the_model() {
     h.run();
     assert!(h.query_by_label("Start over").is_none());
     let design_file = h.state().design.as_ref().unwrap().path.clone().unwrap();
-    let runs = s.user.with_file_name("runs");
-    let run_dir = std::fs::read_dir(&runs)
-        .unwrap()
-        .next()
-        .unwrap()
-        .unwrap()
-        .path();
+    let run_dir = first_run_folder(&s);
     assert!(run_dir.join("checkpoint.bin").exists());
     // Finish a few steps past the checkpoint.
     h.state_mut().train.settings.steps = stopped_at + 3;
@@ -984,8 +994,7 @@ fn the_train_panel_trains_stops_resumes_and_attaches_the_model() {
     let outcome = h.state().train.outcome.clone().unwrap();
     assert!(outcome.is_ok(), "{outcome:?}");
     assert!(attached_model(&design_file).exists(), "{outcome:?}");
-    let report: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(run_dir.join("report.json")).unwrap()).unwrap();
+    let report = run_report(&run_dir);
     assert!(report["resumed_from"].as_u64().is_some());
 }
 
@@ -1210,15 +1219,8 @@ fn the_train_panel_fine_tunes_a_grid_design_from_the_shipped_grid_model() {
     });
     let outcome = h.state().train.outcome.clone().unwrap();
     assert!(outcome.is_ok(), "{outcome:?}");
-    let runs = s.user.with_file_name("runs");
-    let run_dir = std::fs::read_dir(&runs)
-        .unwrap()
-        .next()
-        .unwrap()
-        .unwrap()
-        .path();
-    let report: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(run_dir.join("report.json")).unwrap()).unwrap();
+    let run_dir = first_run_folder(&s);
+    let report = run_report(&run_dir);
     let started = report["started_from"].as_str().unwrap_or_default();
     assert!(started.contains("grid-8-bw.stage2.bin"), "{report}");
 

@@ -9,9 +9,6 @@ use tagsmith::family;
 #[derive(Args, Debug)]
 pub struct FamiliesArgs {}
 
-// `detects`: "default" (read when no --family is given), "named" (shipped weights, read with
-// --family NAME) or "train" (no shipped weights: `tagsmith train` makes them).
-
 impl FamiliesArgs {
     pub fn run(self) -> Result<()> {
         use std::fmt::Write as _;

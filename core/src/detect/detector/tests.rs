@@ -22,23 +22,31 @@ fn a_family_without_weights_is_named_with_the_command_that_trains_them() {
 /// A read with 4 of 36h11's 5 corrections from a 100 px marker: kept from a first pass
 /// over its ROI; from the keypoints of one that decoded nothing, only where its pose
 /// reprojects within a tenth of a cell pitch (12.5 px: 1.25 px).
-#[test]
-fn a_read_from_a_failed_passs_keypoints_needing_many_corrections_must_fit_its_pose() {
-    let family = crate::builtin::get("apriltag-36h11").unwrap().unwrap();
-    let reader = FamilyReader::shipped(family).unwrap();
-    let params = AcceptParams::default();
-    let read = |from_keypoints: bool, rms_px: f64| Stage2Result {
+/// A read of ID 7 on a 100 px square needing `corrected_errors`, both passes agreeing, no pose.
+fn a_read(corrected_errors: usize) -> Stage2Result {
+    Stage2Result {
         id: 7,
         rotation_deg: 0.0,
-        corrected_errors: 4,
+        corrected_errors,
         fixed_mismatches: 0,
         corners: [[0.0, 0.0], [100.0, 0.0], [100.0, 100.0], [0.0, 100.0]],
         keypoints: Vec::new(),
         missing: 0,
         iterations: 2,
         passes_agree: true,
-        from_keypoints,
+        from_keypoints: false,
         refinement: None,
+        pose: None,
+    }
+}
+
+#[test]
+fn a_read_from_a_failed_passs_keypoints_needing_many_corrections_must_fit_its_pose() {
+    let family = crate::builtin::get("apriltag-36h11").unwrap().unwrap();
+    let reader = FamilyReader::shipped(family).unwrap();
+    let params = AcceptParams::default();
+    let read = |from_keypoints: bool, rms_px: f64| Stage2Result {
+        from_keypoints,
         pose: Some(crate::pose::PnpSolution {
             pose: crate::pose::Pose {
                 rotation: nalgebra::Rotation3::identity(),
@@ -49,6 +57,7 @@ fn a_read_from_a_failed_passs_keypoints_needing_many_corrections_must_fit_its_po
             ambiguity_ratio: None,
             covariance: None,
         }),
+        ..a_read(4)
     };
     assert!(reader.accepts(&read(false, 3.0), Trust::First, 0.9, &params));
     assert!(reader.accepts(&read(true, 0.4), Trust::First, 0.9, &params));
@@ -90,39 +99,25 @@ fn codes_too_short_to_correct_are_read_only_without_corrections() {
     let params = AcceptParams::default();
     let reader =
         |name: &str| FamilyReader::shipped(crate::builtin::get(name).unwrap().unwrap()).unwrap();
-    let read = |corrected_errors: usize| Stage2Result {
-        id: 3,
-        rotation_deg: 0.0,
-        corrected_errors,
-        fixed_mismatches: 0,
-        corners: [[0.0, 0.0], [100.0, 0.0], [100.0, 100.0], [0.0, 100.0]],
-        keypoints: Vec::new(),
-        missing: 0,
-        iterations: 2,
-        passes_agree: true,
-        from_keypoints: false,
-        refinement: None,
-        pose: None,
-    };
     for name in ["apriltag-16h5", "aruco-4x4_50"] {
         let short = reader(name);
         assert!(
-            short.accepts(&read(0), Trust::First, 0.9, &params),
+            short.accepts(&a_read(0), Trust::First, 0.9, &params),
             "{name}"
         );
         assert!(
-            !short.accepts(&read(1), Trust::First, 0.9, &params),
+            !short.accepts(&a_read(1), Trust::First, 0.9, &params),
             "{name}"
         );
     }
     let longer = reader("apriltag-25h9");
-    assert!(longer.accepts(&read(1), Trust::First, 0.9, &params));
+    assert!(longer.accepts(&a_read(1), Trust::First, 0.9, &params));
     // The bar is a setting.
     let lenient = AcceptParams {
         min_symbols_to_correct: 16,
         ..params
     };
-    assert!(reader("apriltag-16h5").accepts(&read(1), Trust::First, 0.9, &lenient));
+    assert!(reader("apriltag-16h5").accepts(&a_read(1), Trust::First, 0.9, &lenient));
 }
 
 fn found_at(corners: [[f64; 2]; 4], id: usize, corrections: usize, rms_pitch: f64) -> Found {
