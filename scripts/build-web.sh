@@ -45,6 +45,11 @@ cp app/index.html app/worker.js app/dist.tmp/
 # The data the module does not embed (core/src/assets.rs): the page and its worker fetch it.
 mkdir -p app/dist.tmp/assets
 cp -r assets/fonts assets/backgrounds assets/samples app/dist.tmp/assets/
+# The shipped weights: those assets.rs lists (assets/models/ keeps older ones no build reads).
+mkdir -p app/dist.tmp/assets/models
+grep -o '"models/[^"]*"' core/src/assets.rs | tr -d '"' | while read -r model; do
+  cp "assets/$model" app/dist.tmp/assets/models/
+done
 # Swap the finished folder in whole, so a failed build never leaves a half-written dist.
 rm -rf app/dist && mv app/dist.tmp app/dist
 echo "built: $root/app/dist ($(du -sh app/dist | cut -f1); open it through a web server, e.g. python3 -m http.server -d app/dist)"

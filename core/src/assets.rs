@@ -1,17 +1,19 @@
 //! The data files the library reads at run time, by their path under the repository's `assets/`:
-//! the label font (sheets; the browser studio's text too), the synthesis backgrounds and the
-//! sample photographs the studio opens. Native
+//! the label font (sheets; the browser studio's text too), the synthesis backgrounds, the
+//! sample photographs the studio opens and the detector's shipped weights. Native
 //! builds embed them. The browser build does not: the page and its worker fetch them from beside
 //! the module (`scripts/build-web.sh` copies them into the site) and hand them over with
-//! [`provide`] before anything renders, which keeps 2.1 MB of data out of the wasm module that
-//! every visit compiles (BENCHMARKS.md, "Studio, browser and CLI").
+//! [`provide`] before anything renders, which keeps 2.5 MB of data out of the wasm module that
+//! every visit compiles (BENCHMARKS.md, "Studio, browser and CLI"), and lets a family's weights
+//! ship without growing it.
 
 /// The asset paths, once: the constants, and on native builds the embedded bytes.
 macro_rules! assets {
     (
         font: $font:literal,
         backgrounds: [$($background:literal),* $(,)?],
-        samples: [$($sample:literal),* $(,)?] $(,)?
+        samples: [$($sample:literal),* $(,)?],
+        models: [$($model:literal),* $(,)?] $(,)?
     ) => {
         /// The label font (DejaVu Sans; licence in `assets/fonts/`).
         pub const LABEL_FONT: &str = $font;
@@ -24,12 +26,17 @@ macro_rules! assets {
         /// licences in `assets/samples/`).
         pub const SAMPLES: &[&str] = &[$($sample),*];
 
+        /// The detector's shipped weights (`crate::detect`'s stage 1 and each layout's stage 2;
+        /// how each was trained: BENCHMARKS.md, "Training").
+        pub const MODELS: &[&str] = &[$($model),*];
+
         #[cfg(not(target_arch = "wasm32"))]
         fn embedded(path: &str) -> Option<&'static [u8]> {
             match path {
                 $font => Some(include_bytes!(concat!("../../assets/", $font))),
                 $($background => Some(include_bytes!(concat!("../../assets/", $background))),)*
                 $($sample => Some(include_bytes!(concat!("../../assets/", $sample))),)*
+                $($model => Some(include_bytes!(concat!("../../assets/", $model))),)*
                 _ => None,
             }
         }
@@ -53,6 +60,13 @@ assets!(
         "samples/apriltag-36h11-swarmathon.jpg",
         "samples/apriltag-xo-36h11-synthetic.png",
     ],
+    models: [
+        "models/square.stage1.bin",
+        "models/grid-6-bw.stage2.bin",
+        "models/grid-7-bw.stage2.bin",
+        "models/grid-8-bw.stage2.bin",
+        "models/apriltag-xo-36h11.stage2.bin",
+    ],
 );
 
 /// Every file [`file`] serves: what the browser build fetches.
@@ -60,6 +74,7 @@ pub fn all() -> impl Iterator<Item = &'static str> {
     (std::iter::once(LABEL_FONT))
         .chain(BACKGROUNDS.iter().copied())
         .chain(SAMPLES.iter().copied())
+        .chain(MODELS.iter().copied())
 }
 
 /// The bytes of asset `path` (one of [`all`]).
@@ -134,7 +149,10 @@ mod tests {
                 "{path}"
             );
         }
-        assert_eq!(all().count(), 12);
+        for path in MODELS.iter().copied() {
+            assert!(file(path).starts_with(b"TAGSMITH"), "{path}");
+        }
+        assert_eq!(all().count(), 17);
     }
 
     #[test]

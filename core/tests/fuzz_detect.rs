@@ -104,7 +104,7 @@ fn hostile_quads_are_refused_or_read_never_hang() {
 fn mutated_model_files_load_or_fail_with_an_error() {
     let family = family();
     let stage2_bytes = tagsmith::detect::stage2::shipped_model("apriltag-36h11").unwrap();
-    let stage1_bytes = tagsmith::detect::stage1::pipeline::SHIPPED_STAGE1;
+    let stage1_bytes = tagsmith::detect::stage1::pipeline::shipped_stage1();
     arbtest::arbtest(|u| {
         let stage1 = u.arbitrary::<bool>()?;
         let mut bytes = if stage1 { stage1_bytes } else { stage2_bytes }.to_vec();

@@ -8,7 +8,7 @@ use clap::{Args, ValueEnum};
 use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
-use tagsmith::detect::stage1::pipeline::SHIPPED_STAGE1;
+use tagsmith::detect::stage1::pipeline::shipped_stage1;
 use tagsmith::detect::stage2::model_file::{self, WIDTHS};
 use tagsmith::detect::stage2::{shipped_families, shipped_model};
 use tagsmith::train::stage::TrainStage;
@@ -219,7 +219,7 @@ impl TrainArgs {
                 let stage = match init {
                     "none" => stage,
                     "shipped" => stage
-                        .starting_from(SHIPPED_STAGE1.to_vec(), "shipped stage-1 model")
+                        .starting_from(shipped_stage1().to_vec(), "shipped stage-1 model")
                         .map_err(CliError::failure)?,
                     path => stage
                         .starting_from(read_init(path)?, path)

@@ -233,7 +233,7 @@ fn stitch(a: &Maps, b: &Maps, cut: Cut) -> Maps {
 #[cfg(test)]
 mod tests {
     use super::super::model_file;
-    use super::super::pipeline::{pyramid, SHIPPED_STAGE1};
+    use super::super::pipeline::{pyramid, shipped_stage1};
     use super::*;
     use crate::detect::plain_net::largest_difference;
     use burn::tensor::Device;
@@ -279,7 +279,7 @@ mod tests {
     #[test]
     fn tiled_maps_are_the_whole_levels_maps() {
         let device = Device::flex();
-        let (net, _) = model_file::from_bytes(SHIPPED_STAGE1, "shipped", &device).unwrap();
+        let (net, _) = model_file::from_bytes(shipped_stage1(), "shipped", &device).unwrap();
         let net = net.plain();
         let image = textured_with_marker(301, 222, (90, 60), 80);
         let contrast = Contrast::of(&image);
@@ -326,7 +326,7 @@ mod tests {
     #[test]
     fn banded_maps_are_the_whole_levels_maps() {
         let device = Device::flex();
-        let (net, _) = model_file::from_bytes(SHIPPED_STAGE1, "shipped", &device).unwrap();
+        let (net, _) = model_file::from_bytes(shipped_stage1(), "shipped", &device).unwrap();
         let net = net.plain();
         // A checkerboard marker-like square across where the cut falls, on a textured ground;
         // odd sizes so the bottom and right edges are padded.

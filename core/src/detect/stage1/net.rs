@@ -135,7 +135,7 @@ mod tests {
         // Stem 1, trunk 2 + 2 + 4 + 8 + 16 (stride 4 from its second block), head 4.
         assert_eq!(super::receptive_radius(), 37);
     }
-    use super::super::pipeline::SHIPPED_STAGE1;
+    use super::super::pipeline::shipped_stage1;
     use burn::tensor::{Device, Tensor, TensorData};
 
     /// Every detection runs the folded network as plain loops: its maps must be the shipped
@@ -143,7 +143,7 @@ mod tests {
     #[test]
     fn folded_batch_norms_compute_what_the_shipped_network_does() {
         let device = Device::flex();
-        let (net, _) = model_file::from_bytes(SHIPPED_STAGE1, "shipped", &device).unwrap();
+        let (net, _) = model_file::from_bytes(shipped_stage1(), "shipped", &device).unwrap();
         let (w, h) = (96, 64);
         let pixels: Vec<f32> = (0..w * h)
             .map(|i| {

@@ -23,8 +23,11 @@ use burn::tensor::Device;
 use std::borrow::Cow;
 use std::path::Path;
 
-/// Stage-1 weights shipped in `assets/models/`: one model for every square family.
-pub const SHIPPED_STAGE1: &[u8] = include_bytes!("../../../../assets/models/square.stage1.bin");
+/// Stage-1 weights shipped in `assets/models/` ([`crate::assets`]): one model for every square
+/// family.
+pub fn shipped_stage1() -> &'static [u8] {
+    crate::assets::file("models/square.stage1.bin")
+}
 
 /// The coarsest pyramid level's short side, in pixels: below it a marker that fills the view no
 /// longer has room for its quiet zone on the grid.
@@ -104,7 +107,7 @@ impl Stage1 {
 
     /// The stage-1 model shipped in `assets/models/` for every square family.
     pub fn shipped() -> Result<Self, ModelError> {
-        Self::from_bytes(SHIPPED_STAGE1, "shipped stage-1 model")
+        Self::from_bytes(shipped_stage1(), "shipped stage-1 model")
     }
 
     pub(crate) fn new(net: &Stage1Net, header: Stage1Header) -> Self {

@@ -29,26 +29,24 @@ pub use pipeline::{ReadOptions, Stage2, Stage2Result};
 /// trained on AprilTag 36h11's and ArUco 6x6_250's codes together: both families ship them, so a
 /// detection of both reads each quad with one network pass (`PassMemo`; BENCHMARKS.md, "One
 /// model for one layout").
-const GRID_8_BLACK_WHITE: &[u8] = include_bytes!("../../../../assets/models/grid-8-bw.stage2.bin");
+const GRID_8_BLACK_WHITE: &str = "models/grid-8-bw.stage2.bin";
 
 /// The 6 × 6 black-and-white grid's weights (4 × 4 data cells), fine-tuned from the 8 × 8 grid's
 /// on AprilTag 16h5's and ArUco 4x4_50's codes together (BENCHMARKS.md, "Every family
 /// detecting").
-const GRID_6_BLACK_WHITE: &[u8] = include_bytes!("../../../../assets/models/grid-6-bw.stage2.bin");
+const GRID_6_BLACK_WHITE: &str = "models/grid-6-bw.stage2.bin";
 
 /// The 7 × 7 grid's (5 × 5 data cells), fine-tuned the same way on AprilTag 25h9's and ArUco
 /// 5x5_100's codes.
-const GRID_7_BLACK_WHITE: &[u8] = include_bytes!("../../../../assets/models/grid-7-bw.stage2.bin");
+const GRID_7_BLACK_WHITE: &str = "models/grid-7-bw.stage2.bin";
 
-/// Stage-2 weights shipped in `assets/models/` for built-in families, by family name.
-const SHIPPED: &[(&str, &[u8])] = &[
+/// Stage-2 weights shipped in `assets/models/` for built-in families, by family name: the
+/// asset each family's model is ([`crate::assets`]).
+const SHIPPED: &[(&str, &str)] = &[
     ("apriltag-16h5", GRID_6_BLACK_WHITE),
     ("apriltag-25h9", GRID_7_BLACK_WHITE),
     ("apriltag-36h11", GRID_8_BLACK_WHITE),
-    (
-        "apriltag-xo-36h11",
-        include_bytes!("../../../../assets/models/apriltag-xo-36h11.stage2.bin"),
-    ),
+    ("apriltag-xo-36h11", "models/apriltag-xo-36h11.stage2.bin"),
     ("aruco-4x4_50", GRID_6_BLACK_WHITE),
     ("aruco-5x5_100", GRID_7_BLACK_WHITE),
     ("aruco-6x6_250", GRID_8_BLACK_WHITE),
@@ -76,16 +74,16 @@ pub const DEFAULT_FAMILIES: &[&str] = &["apriltag-36h11", "apriltag-xo-36h11", "
 /// needs ten thousand for (BENCHMARKS.md, "Every family detecting").
 #[cfg(feature = "detect")]
 pub fn fine_tune_start(family: &crate::Family) -> Option<&'static [u8]> {
-    const NAME: &str = "grid-8-bw.stage2.bin";
     // Read once: the Train panel asks on every frame.
     static GRID_NET: std::sync::OnceLock<Option<net::NetConfig>> = std::sync::OnceLock::new();
     let grid = GRID_NET.get_or_init(|| {
-        let (header, _) = model_file::read_header(GRID_8_BLACK_WHITE, NAME).ok()?;
+        let bytes = crate::assets::file(GRID_8_BLACK_WHITE);
+        let (header, _) = model_file::read_header(bytes, GRID_8_BLACK_WHITE).ok()?;
         Some(header.net)
     });
-    model_file::check_network(grid.as_ref()?, NAME, family)
+    model_file::check_network(grid.as_ref()?, GRID_8_BLACK_WHITE, family)
         .is_ok()
-        .then_some(GRID_8_BLACK_WHITE)
+        .then(|| crate::assets::file(GRID_8_BLACK_WHITE))
 }
 
 /// The shipped stage-2 model file of a built-in family, if it has one.
@@ -93,7 +91,7 @@ pub fn shipped_model(family: &str) -> Option<&'static [u8]> {
     SHIPPED
         .iter()
         .find(|(name, _)| *name == family)
-        .map(|(_, bytes)| *bytes)
+        .map(|(_, asset)| crate::assets::file(asset))
 }
 
 /// The network's input: each patch standardised to zero mean and unit contrast, so the marker's
