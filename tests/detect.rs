@@ -353,16 +353,22 @@ fn stage_2_fine_tunes_from_the_shipped_weights() {
         run.stderr
     );
     // A grid of another size starts from the shipped 8 × 8 grid model (the same network: two
-    // categories); a family of other categories cannot.
+    // categories); a family of other categories from its trunk with a class head of its own; a
+    // family whose patch is another size (rings) cannot.
     let grid = workspace().join("assets/models/grid-8-bw.stage2.bin");
     let grid: &'static str = grid.to_str().unwrap().to_string().leak();
     tagsmith(dir.path(), &args("apriltag-16h5", &["--init", grid])).ok();
     let report: serde_json::Value =
         serde_json::from_slice(&std::fs::read(dir.path().join("ft/report.json")).unwrap()).unwrap();
     assert_eq!(report["started_from"], grid);
-    let run = tagsmith(dir.path(), &args("quaternary-6x6", &["--init", grid]));
+    tagsmith(dir.path(), &args("quaternary-6x6", &["--init", grid])).ok();
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("ft/report.json")).unwrap()).unwrap();
+    assert_eq!(report["started_from"], grid);
+    assert_eq!(report["net"]["classes"], 6, "{report}");
+    let run = tagsmith(dir.path(), &args("runetag", &["--init", grid]));
     assert_eq!(run.code, 2);
-    assert!(run.stderr.contains("net.classes"), "{}", run.stderr);
+    assert!(run.stderr.contains("net.patch"), "{}", run.stderr);
     let run = tagsmith(
         dir.path(),
         &args("aruco-6x6_250", &["--camera-patches", "1.5"]),

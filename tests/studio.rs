@@ -1187,10 +1187,11 @@ fn the_compare_panel_runs_a_sweep_and_the_command_line_agrees() {
 }
 
 /// Train panel: a design of two categories starts from the shipped grid model (a fine-tune at
-/// its own steps and learning rate, the model's width); a design the grid model does not fit
-/// (four categories) trains from fresh weights; unticking goes back to the fresh defaults.
+/// its own steps and learning rate, the model's width), and says so; a quaternary design from
+/// its trunk with a fresh class head; a ring design, whose patch no shipped model fits, from
+/// fresh weights; unticking goes back to the fresh defaults.
 #[test]
-fn the_train_panel_fine_tunes_a_grid_design_from_the_shipped_grid_model() {
+fn the_train_panel_fine_tunes_a_design_from_the_shipped_model_that_fits_it() {
     use tagsmith_studio::studio::train::{Settings, FINE_TUNE_STEPS};
     let s = setup();
     let mut h = studio(&s);
@@ -1202,11 +1203,12 @@ fn the_train_panel_fine_tunes_a_grid_design_from_the_shipped_grid_model() {
     let settings = h.state().train.settings.clone();
     assert!(settings.fine_tune);
     assert_eq!(settings.steps, FINE_TUNE_STEPS);
+    h.get_by_label("grid-8-bw: the same number of categories as this design");
     // Fresh weights when asked, with the fresh defaults; and back.
-    h.get_by_label("the shipped grid model (fine-tune)").click();
+    h.get_by_label("a shipped model (fine-tune)").click();
     h.run();
     assert_eq!(h.state().train.settings, Settings::default());
-    h.get_by_label("the shipped grid model (fine-tune)").click();
+    h.get_by_label("a shipped model (fine-tune)").click();
     h.run();
     assert!(h.state().train.settings.fine_tune);
     h.state_mut().train.settings.steps = 3;
@@ -1224,10 +1226,21 @@ fn the_train_panel_fine_tunes_a_grid_design_from_the_shipped_grid_model() {
     let started = report["started_from"].as_str().unwrap_or_default();
     assert!(started.contains("grid-8-bw.stage2.bin"), "{report}");
 
-    // Four categories: the grid model's network does not fit; fresh weights.
+    // Four categories: the grid model's trunk, a fresh class head.
     h.get_by_label("Families").click();
     h.run();
     duplicate(&mut h, "quaternary-6x6");
+    h.get_by_label("Train").click();
+    h.run();
+    assert!(h.state().train.settings.fine_tune);
+    h.get_by_label("grid-8-bw, its trunk; the class head learns this design's categories afresh");
+    h.state_mut().save();
+    h.run();
+
+    // Rings: no shipped model's patch fits; fresh weights.
+    h.get_by_label("Families").click();
+    h.run();
+    duplicate(&mut h, "runetag");
     h.get_by_label("Train").click();
     h.run();
     assert!(!h.state().train.settings.fine_tune);

@@ -39,8 +39,8 @@ mod desktop {
     use std::sync::atomic::{AtomicBool, Ordering};
     use std::sync::{Arc, Mutex};
     use std::time::Instant;
-    use tagsmith::detect::stage2::fine_tune_start;
     use tagsmith::detect::stage2::model_file::{MAX_STEPS, WIDTHS};
+    use tagsmith::detect::stage2::{fine_tune_start, FineTuneStart};
     use tagsmith::family::Family;
     use tagsmith::train::stage::{Picture, TrainStage};
     use tagsmith::train::stage1::RoiStage;
@@ -61,8 +61,8 @@ mod desktop {
         pub batch: usize,
         pub width: usize,
         pub learning_rate: f64,
-        /// Stage 2 starts from the shipped grid model ([`fine_tune_start`]) where the design's
-        /// network fits it, at [`FINE_TUNE_STEPS`] and [`FINE_TUNE_LEARNING_RATE`].
+        /// Stage 2 starts from a shipped model ([`fine_tune_start`]) where the design's patch
+        /// fits one, at [`FINE_TUNE_STEPS`] and [`FINE_TUNE_LEARNING_RATE`].
         pub fine_tune: bool,
         /// Where the run writes its checkpoints, model and report; empty: the default folder
         /// beside the user's families ([`run_folder`]).
@@ -91,7 +91,7 @@ mod desktop {
     }
 
     impl Settings {
-        /// Fine-tuning from the shipped grid model, or (`false`) training from fresh weights:
+        /// Fine-tuning from a shipped model, or (`false`) training from fresh weights:
         /// each with its own steps and learning rate.
         pub fn set_fine_tune(&mut self, on: bool) {
             let fresh = Self::default();
@@ -489,12 +489,28 @@ mod desktop {
         reporter: &'a super::super::job::Reporter,
     }
 
+    /// Which shipped model a fine-tune starts from, in the user's words.
+    fn fine_tune_words(start: FineTuneStart) -> String {
+        let name = start
+            .asset
+            .trim_start_matches("models/")
+            .trim_end_matches(".stage2.bin");
+        if start.fresh_class_head {
+            format!("{name}, its trunk; the class head learns this design's categories afresh")
+        } else {
+            format!("{name}: the same number of categories as this design")
+        }
+    }
+
     fn run(family: &Family, settings: &Settings, with: RunWith) -> Result<String, String> {
         match settings.stage {
             StageChoice::Keypoints => {
                 let stage = KeypointStage::new(family, with.config.width);
                 match fine_tune_start(family).filter(|_| settings.fine_tune) {
-                    Some(start) => go(stage.starting_from(start.to_vec(), SHIPPED_GRID)?, with),
+                    Some(start) => {
+                        let name = format!("the shipped model assets/{}", start.asset);
+                        go(stage.starting_from(start.bytes().to_vec(), &name)?, with)
+                    }
                     None => go(stage, with),
                 }
             }
@@ -504,9 +520,6 @@ mod desktop {
             ),
         }
     }
-
-    /// The name a fine-tune's report gives the model it started from.
-    const SHIPPED_GRID: &str = "the shipped grid model (assets/models/grid-8-bw.stage2.bin)";
 
     fn go<S: TrainStage>(stage: S, w: RunWith) -> Result<String, String> {
         let report = train::train(
@@ -552,12 +565,13 @@ mod desktop {
             .as_ref()
             .map(|d| d.spec().name.clone())
             .unwrap_or_default();
-        let fine_tunable = (studio.design.as_ref())
+        let shipped_start = (studio.design.as_ref())
             .and_then(|d| d.validation().as_ref().ok())
-            .is_some_and(|f| fine_tune_start(f).is_some());
+            .and_then(fine_tune_start);
+        let fine_tunable = shipped_start.is_some();
         let chosen = &mut studio.train.fine_tune_chosen;
         let s = &mut studio.train.settings;
-        // A design the grid model fits starts from it, until the user says otherwise.
+        // A design a shipped model fits starts from it, until the user says otherwise.
         if !running && s.fine_tune != fine_tunable && (!*chosen || !fine_tunable) {
             s.set_fine_tune(fine_tunable);
         }
@@ -581,17 +595,21 @@ mod desktop {
                         let response = ui
                             .add_enabled(
                                 fine_tunable,
-                                egui::Checkbox::new(&mut on, "the shipped grid model (fine-tune)"),
+                                egui::Checkbox::new(&mut on, "a shipped model (fine-tune)"),
                             )
                             .on_disabled_hover_text(
-                                "fresh weights: the grid model's network has two categories and \
-                                 its own patch side",
+                                "fresh weights: the design's patch is not the shipped models' size",
                             );
                         if response.changed() {
                             s.set_fine_tune(on);
                             *chosen = true;
                         }
                         ui.end_row();
+                        if let Some(shipped) = shipped_start.filter(|_| s.fine_tune) {
+                            ui.label("");
+                            ui.weak(fine_tune_words(shipped));
+                            ui.end_row();
+                        }
                     }
                     let label = ui.label("Steps");
                     ui.add(egui::DragValue::new(&mut s.steps).range(1..=MAX_STEPS))

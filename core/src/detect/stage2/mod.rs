@@ -67,23 +67,65 @@ pub fn shipped_families() -> impl Iterator<Item = &'static str> {
 /// others are read when named.
 pub const DEFAULT_FAMILIES: &[&str] = &["apriltag-36h11", "apriltag-xo-36h11", "aruco-6x6_250"];
 
-/// The shipped model a new design's stage 2 can be fine-tuned from: the grid model, for a
-/// family of two categories whose patch is the grid model's (a black/white grid of any size),
-/// where its network fits ([`model_file::to_fine_tune`]). What it
-/// learned of cells and frames carries over, so a few thousand steps do what a fresh network
-/// needs ten thousand for (BENCHMARKS.md, "Every family detecting").
+/// The shipped models a new design's stage 2 can be fine-tuned from, in the order they are
+/// preferred: the grid model (two categories) and the XO model (a frame and two glyphs).
+const FINE_TUNE_MODELS: &[&str] = &[GRID_8_BLACK_WHITE, "models/apriltag-xo-36h11.stage2.bin"];
+
+/// Where a new design's stage 2 starts when fine-tuned ([`fine_tune_start`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FineTuneStart {
+    /// The shipped model, as an asset path (`models/….stage2.bin`).
+    pub asset: &'static str,
+    /// Whether its class head starts fresh: the design's categories are not as many as the
+    /// model's ([`model_file::to_fine_tune`]).
+    pub fresh_class_head: bool,
+}
+
+impl FineTuneStart {
+    pub fn bytes(&self) -> &'static [u8] {
+        crate::assets::file(self.asset)
+    }
+}
+
+/// The shipped model a new design's stage 2 is fine-tuned from: one whose network fits it
+/// whole (as many categories, the same patch side), else the grid model with a fresh class head
+/// where the patch side fits. What the trunk learned of frames, cells and perspective carries
+/// over, so a few thousand steps do what a fresh network needs ten thousand for (BENCHMARKS.md,
+/// "Every family detecting"). `None`: the design's patch is another size (dense keypoints,
+/// rings); it trains from fresh weights.
 #[cfg(feature = "detect")]
-pub fn fine_tune_start(family: &crate::Family) -> Option<&'static [u8]> {
+pub fn fine_tune_start(family: &crate::Family) -> Option<FineTuneStart> {
     // Read once: the Train panel asks on every frame.
-    static GRID_NET: std::sync::OnceLock<Option<net::NetConfig>> = std::sync::OnceLock::new();
-    let grid = GRID_NET.get_or_init(|| {
-        let bytes = crate::assets::file(GRID_8_BLACK_WHITE);
-        let (header, _) = model_file::read_header(bytes, GRID_8_BLACK_WHITE).ok()?;
-        Some(header.net)
+    static NETS: std::sync::OnceLock<Vec<Option<net::NetConfig>>> = std::sync::OnceLock::new();
+    let nets = NETS.get_or_init(|| {
+        (FINE_TUNE_MODELS.iter())
+            .map(|asset| {
+                let bytes = crate::assets::file(asset);
+                Some(model_file::read_header(bytes, asset).ok()?.0.net)
+            })
+            .collect()
     });
-    model_file::check_network(grid.as_ref()?, GRID_8_BLACK_WHITE, family)
+    let candidates = || {
+        FINE_TUNE_MODELS
+            .iter()
+            .zip(nets)
+            .filter_map(|(a, n)| Some((*a, n.as_ref()?)))
+    };
+    let whole =
+        candidates().find(|(asset, net)| model_file::check_network(net, asset, family).is_ok());
+    if let Some((asset, _)) = whole {
+        return Some(FineTuneStart {
+            asset,
+            fresh_class_head: false,
+        });
+    }
+    let (asset, net) = candidates().next()?;
+    model_file::check_patch(net, asset, family)
         .is_ok()
-        .then(|| crate::assets::file(GRID_8_BLACK_WHITE))
+        .then_some(FineTuneStart {
+            asset,
+            fresh_class_head: true,
+        })
 }
 
 /// The shipped stage-2 model file of a built-in family, if it has one.

@@ -113,15 +113,25 @@ pub fn from_bytes(
 }
 
 /// The weights of a model to fine-tune for `family`, which may have another layout than the one
-/// they learned (a user's 7 × 7 grid from the 8 × 8 grid model): the network's shape is what must
-/// fit, its classes (the family's categories) and patch side. Reading with them takes training.
+/// they learned (a user's 7 × 7 grid from the 8 × 8 grid model) and other categories (a
+/// quaternary design from it): the patch side must fit; where the classes differ, the class head
+/// starts fresh ([`Stage2Net::with_class_head`]) and the header says the family's classes.
+/// Reading with them takes training.
 pub fn to_fine_tune(
     bytes: &[u8],
     path: &str,
     family: &Family,
     device: &Device,
 ) -> Result<(Stage2Net, ModelHeader), ModelError> {
-    load_checked(bytes, path, family, device, false)
+    let (stored, _) = read_header(bytes, path)?;
+    check_patch(&stored.net, path, family)?;
+    let classes = family.categories().len() + 1;
+    if stored.net.classes == classes {
+        return load_checked(bytes, path, family, device, false);
+    }
+    let (net, mut header) = load_weights_as_stored(bytes, path, device)?;
+    header.net.classes = classes;
+    Ok((net.with_class_head(&header.net, device), header))
 }
 
 /// Whether a network of `net`'s shape fits `family`: its classes (the family's categories and
@@ -139,6 +149,11 @@ pub fn check_network(net: &NetConfig, path: &str, family: &Family) -> Result<(),
             ),
         ));
     }
+    check_patch(net, path, family)
+}
+
+/// Whether a network of `net`'s patch side fits `family`'s: what a fine-tune needs.
+pub fn check_patch(net: &NetConfig, path: &str, family: &Family) -> Result<(), ModelError> {
     let patch = super::anchors::PatchSpec::for_family(family).size as usize;
     if net.patch != patch {
         return Err(ModelError::bad_field(
@@ -158,7 +173,7 @@ fn load_checked(
     device: &Device,
     same_layout: bool,
 ) -> Result<(Stage2Net, ModelHeader), ModelError> {
-    let (header, start) = read_header(bytes, path)?;
+    let (header, _) = read_header(bytes, path)?;
     // The weights fit any family with the layout they learned, whatever its name: the codebook
     // only decodes what they read.
     if same_layout && header.family_hash != family_hash(family) {
@@ -175,6 +190,16 @@ fn load_checked(
         });
     }
     check_network(&header.net, path, family)?;
+    load_weights_as_stored(bytes, path, device)
+}
+
+/// The network the model file describes, its weights loaded and checked.
+fn load_weights_as_stored(
+    bytes: &[u8],
+    path: &str,
+    device: &Device,
+) -> Result<(Stage2Net, ModelHeader), ModelError> {
+    let (header, start) = read_header(bytes, path)?;
     let weights = checked_weights(bytes, start, &header.weights_fnv, path)?;
     let net = header.net.init(device);
     let network = || {

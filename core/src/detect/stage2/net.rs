@@ -50,6 +50,14 @@ impl NetConfig {
         n
     }
 
+    /// The layer that classes each anchor (the family's categories and the background), freshly
+    /// initialised.
+    fn class_head(&self, device: &Device) -> Conv2d {
+        Conv2dConfig::new([self.width, self.classes], [3, 3])
+            .with_padding(PaddingConfig2d::Explicit(1, 1, 1, 1))
+            .init(device)
+    }
+
     pub fn init(&self, device: &Device) -> Stage2Net {
         let w = self.width;
         let conv = |cin: usize, cout: usize, k: usize| {
@@ -64,7 +72,7 @@ impl NetConfig {
             mask: conv(w, 1, 1),
             align: conv(w + 1, w, 1),
             keypoint: SeparableBlock::new(w, w, 1, 1, device),
-            classes: conv(w, self.classes, 3),
+            classes: self.class_head(device),
             offsets: conv(w, 2, 3),
             template: (0..self.template_blocks())
                 .map(|i| SeparableBlock::new(if i == 0 { w } else { w / 2 }, w / 2, 2, 1, device))
@@ -104,6 +112,16 @@ pub struct Outputs {
 }
 
 impl Stage2Net {
+    /// The network with a fresh class head for `config`'s classes (its width the network's):
+    /// a design of other categories fine-tunes from what the trunk learned of frames, cells and
+    /// perspective, and learns only what its own categories look like from scratch.
+    pub(crate) fn with_class_head(self, config: &NetConfig, device: &Device) -> Self {
+        Self {
+            classes: config.class_head(device),
+            ..self
+        }
+    }
+
     /// `x`: N × 1 × P × P normalised patches.
     pub fn forward(&self, x: Tensor<4>) -> Outputs {
         let mut x = relu(batch_norm_unless(

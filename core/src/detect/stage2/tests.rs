@@ -148,17 +148,81 @@ fn reliability_is_the_share_among_admitted_categories() {
         .all(|(i, &r)| i == code_slot || r == 0.0));
 }
 
-/// A new design of two categories starts from the shipped grid model wherever its network fits
-/// (any grid size); more categories (XO's frame and two glyphs, quaternary cells) need a network
-/// of their own.
+/// A new design starts from a shipped model whose network fits it whole (the grid model for two
+/// categories of any grid size, the XO model for a frame and two glyphs), else from the grid
+/// model with a fresh class head (quaternary cells); a design whose patch is another size (rings)
+/// trains from fresh weights.
 #[cfg(feature = "detect")]
 #[test]
-fn two_category_designs_fine_tune_from_the_grid_model_and_others_do_not() {
+fn new_designs_fine_tune_from_the_shipped_model_that_fits_them() {
     let get = |name: &str| builtin::get(name).unwrap().unwrap();
+    let start =
+        |name: &str| super::fine_tune_start(&get(name)).map(|s| (s.asset, s.fresh_class_head));
+    let grid = "models/grid-8-bw.stage2.bin";
     for name in ["apriltag-16h5", "aruco-5x5_100", "apriltag-36h11"] {
-        assert!(super::fine_tune_start(&get(name)).is_some(), "{name}");
+        assert_eq!(start(name), Some((grid, false)), "{name}");
     }
-    for name in ["apriltag-xo-36h11", "quaternary-6x6"] {
-        assert!(super::fine_tune_start(&get(name)).is_none(), "{name}");
+    for name in ["apriltag-xa-36h11", "topotag-like"] {
+        assert_eq!(
+            start(name),
+            Some(("models/apriltag-xo-36h11.stage2.bin", false)),
+            "{name}"
+        );
     }
+    assert_eq!(start("quaternary-6x6"), Some((grid, true)));
+    assert_eq!(start("runetag"), None);
+}
+
+/// The weights of a model fine-tuned for a design of other categories: the trunk is the model's,
+/// the class head has the design's classes, and the header says so.
+#[cfg(feature = "detect")]
+#[test]
+fn a_fine_tune_across_categories_keeps_the_trunk_and_sizes_the_class_head() {
+    use burn::tensor::{Device, Tensor};
+    let family = builtin::get("quaternary-6x6").unwrap().unwrap();
+    let start = super::fine_tune_start(&family).unwrap();
+    let device = Device::flex();
+    let (net, header) =
+        super::model_file::to_fine_tune(start.bytes(), start.asset, &family, &device).unwrap();
+    assert_eq!(header.net.classes, family.categories().len() + 1);
+    let patch = header.net.patch;
+    let out = net.forward(Tensor::zeros([1, 1, patch, patch], &device));
+    assert_eq!(out.logits.dims()[1], family.categories().len() + 1);
+    // The rest of the network is the shipped one: the same mask for the same patch.
+    let grid = builtin::get("apriltag-36h11").unwrap().unwrap();
+    let (shipped, _) =
+        super::model_file::from_bytes(start.bytes(), start.asset, &grid, &device).unwrap();
+    let patch_in = || {
+        Tensor::<4>::random(
+            [1, 1, patch, patch],
+            burn::tensor::Distribution::Default,
+            &device,
+        )
+    };
+    let x = patch_in();
+    let a = net
+        .forward(x.clone())
+        .mask
+        .into_data()
+        .try_to_vec::<f32>()
+        .unwrap();
+    let b = shipped
+        .forward(x)
+        .mask
+        .into_data()
+        .try_to_vec::<f32>()
+        .unwrap();
+    let largest = a
+        .iter()
+        .zip(&b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f32::max);
+    assert!(largest < 1e-4, "{largest}");
+    // A patch of another size is refused, naming the field.
+    let rings = builtin::get("runetag").unwrap().unwrap();
+    let err = super::model_file::to_fine_tune(start.bytes(), start.asset, &rings, &device)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(err.contains("net.patch"), "{err}");
 }
