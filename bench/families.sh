@@ -7,7 +7,10 @@
 #   cargo build --release && bench/families.sh OUT_DIR [SEED] [PER_CELL]
 # PER_CELL=20 gives 700 Normal and 1300 Difficult markers per family (≈ 6 minutes a family here);
 # FAMILIES="a b" picks some. Baselines: bench/side_by_side.sh (AprilTag 3 for the AprilTag
-# families it has, OpenCV for the dictionaries it has); a family no baseline reads gets Tagsmith's rows alone.
+# families it has, OpenCV for the dictionaries it has); a family no baseline reads gets Tagsmith's
+# rows beside the DeepTag paper's own Normal / Difficult recall where the paper has a row for it
+# (Zhang et al., TPAMI 2023, the table of its own dataset: another protocol and other images, so
+# a reference, not a paired comparison).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out=${1:?usage: bench/families.sh OUT_DIR [SEED] [PER_CELL]}
@@ -17,6 +20,17 @@ T=${TAGSMITH:-target/release/tagsmith}
 PY=bench/.venv/bin/python
 families=${FAMILIES:-$($T families | awk 'NR > 1 && ($7 == "default" || $7 == "named") { print $1 }')}
 mkdir -p "$out"
+
+# The DeepTag paper's recall for a family no baseline here reads, "Normal / Difficult".
+paper() {
+  case "$1" in
+    topotag-like) echo "DeepTag (paper) 100 % / 59.86 %" ;;
+    apriltag-xo-36h11) echo "DeepTag (paper) 99.97 % / 65.94 %" ;;
+    apriltag-xa-36h11) echo "DeepTag (paper) 100 % / 64.57 %" ;;
+    runetag | runetag-plus) echo "DeepTag (paper) 65.49 % / 0.75 %" ;;
+    *) echo "" ;;
+  esac
+}
 
 # The recall and precision of a scored row, "recall / precision".
 row() { grep -E "^\| $2" "$1" | head -1 | awk -F'|' '{ gsub(/ /, "", $5); gsub(/ /, "", $6); print $5 " / " $6 }'; }
@@ -38,7 +52,7 @@ for family in $families; do
   else
     $T detect-set "$set_dir" --full -o "$out/$family-tagsmith.json" >/dev/null
     $T eval score "$set_dir" "$out/$family-tagsmith.json" -o "$out/$family-report-tagsmith" >/dev/null
-    name="none" paired="" base_row=""
+    name="none" paired="" base_row="$(paper "$family")"
   fi
   ours="$out/$family-report-tagsmith/report.md"
   echo "| $family | $name | $(row "$ours" normal) | $(row "$ours" difficult) | $(row "$ours" 'noise sweep') | $base_row | $paired |"

@@ -1246,3 +1246,42 @@ fn the_train_panel_fine_tunes_a_design_from_the_shipped_model_that_fits_it() {
     assert!(!h.state().train.settings.fine_tune);
     assert_eq!(h.state().train.settings.steps, Settings::default().steps);
 }
+
+/// A design duplicated from a built-in, with the layout a shipped model learned, detects with no
+/// training: the Detect panel offers it with that model, it reads the tutorial photograph's
+/// markers under its own name, and its gallery card says how it detects.
+#[test]
+fn a_design_on_a_shipped_layout_detects_without_training() {
+    let s = setup();
+    let mut h = studio(&s);
+    duplicate(&mut h, "aruco-6x6_250");
+    h.state_mut().save();
+    h.run();
+    let name = h.state().design.as_ref().unwrap().spec().name.clone();
+    h.get_by_label("Detect").click();
+    h.run();
+    for builtin in ["apriltag-36h11", "apriltag-xo-36h11", "aruco-6x6_250"] {
+        h.get_by_label(builtin).click();
+        h.run();
+    }
+    h.get_by_label(&format!("{name} (the shipped model of its layout)"));
+    h.get_by_label("aruco-6x6_250-tutorial.jpg").click();
+    h.run();
+    wait_for_detection(&mut h);
+    let result = h.state().detect.result.as_ref().unwrap();
+    assert!(
+        result.markers.len() >= 5,
+        "{} markers",
+        result.markers.len()
+    );
+    assert!(
+        (result.markers.iter()).all(|m| m.detection.family.as_deref() == Some(name.as_str())),
+        "every read is the design's"
+    );
+    h.get_by_label("Families").click();
+    h.run();
+    assert!(h
+        .query_all_by_label("detects: the shipped model of its layout")
+        .next()
+        .is_some());
+}

@@ -93,7 +93,7 @@ impl Family {
     /// Whether weights for this family ship with Tagsmith.
     #[getter]
     fn has_shipped_weights(&self) -> bool {
-        tagsmith::detect::stage2::shipped_model(self.inner.name()).is_some()
+        tagsmith::detect::stage2::shipped_model_for(&self.inner).is_some()
     }
 
     /// Marker `id` as a gray `uint8` array `px` wide (quiet zone included).

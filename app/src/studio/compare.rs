@@ -312,10 +312,14 @@ fn load_chosen(studio: &Studio) -> Result<Vec<(Family, Stage2)>, String> {
             .find(|e| &e.spec.name == name)
             .expect("a candidate is an entry");
         let family = Family::from_spec(entry.spec.clone()).map_err(|e| e.to_string())?;
-        let stage2 = match file {
-            Some(file) => {
-                Stage2::load(&attached_model(file), &family).map_err(|e| e.to_string())?
-            }
+        // A user's family reads with its trained model, else with the shipped model of its
+        // layout (what `Entry::detection` offered it for).
+        let trained = file
+            .as_ref()
+            .map(|f| attached_model(f))
+            .filter(|m| m.is_file());
+        let stage2 = match trained {
+            Some(model) => Stage2::load(&model, &family).map_err(|e| e.to_string())?,
             None => Stage2::shipped(&family)
                 .ok_or(format!("{name} has no shipped weights"))?
                 .map_err(|e| e.to_string())?,

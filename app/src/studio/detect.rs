@@ -26,7 +26,7 @@ use super::Studio;
 use crate::settings::DetectorSettings;
 use egui::{Color32, Pos2, Rect, Stroke, Vec2};
 use tagsmith::detect::annotate::{annotate_all, Overlay};
-use tagsmith::detect::stage2::{shipped_families, DEFAULT_FAMILIES};
+use tagsmith::detect::stage2::{shipped_families, shipped_model_for, DEFAULT_FAMILIES};
 use tagsmith::detect::{
     BenchDetector, DetectionsFile, Detector, DetectorOptions, Found, ImageDetections, Timings,
 };
@@ -52,9 +52,10 @@ pub struct DetectResult {
 pub struct DetectState {
     /// Families with shipped weights and whether to detect them.
     pub families: Vec<(String, bool)>,
-    /// The design being edited, when a model trained in the Train panel is attached to it:
-    /// its family, model file and whether to detect it.
-    pub design: Option<(tagsmith::family::Family, std::path::PathBuf, bool)>,
+    /// The design being edited, when a model trained in the Train panel is attached to it or a
+    /// shipped model has its layout: its family, the model file (`None`: the shipped one) and
+    /// whether to detect it.
+    pub design: Option<(tagsmith::family::Family, Option<std::path::PathBuf>, bool)>,
     /// How the detector runs: the same settings as `tagsmith detect`'s flags.
     pub settings: DetectorSettings,
     pub image: Option<LoadedImage>,
@@ -156,14 +157,14 @@ impl DetectState {
         &self,
     ) -> (
         Vec<String>,
-        Option<(&tagsmith::family::Family, &std::path::Path)>,
+        Option<(&tagsmith::family::Family, Option<&std::path::Path>)>,
     ) {
         let builtins = (self.families.iter())
             .filter(|(_, on)| *on)
             .map(|(f, _)| f.clone())
             .collect();
         let design = match &self.design {
-            Some((family, model, true)) => Some((family, model.as_path())),
+            Some((family, model, true)) => Some((family, model.as_deref())),
             _ => None,
         };
         (builtins, design)
@@ -177,17 +178,26 @@ impl DetectState {
             .map(|(f, _)| f.clone())
             .collect();
         if let Some((family, model, true)) = &self.design {
-            chosen.push(format!("{} ({})", family.name(), model.display()));
+            let weights = model
+                .as_ref()
+                .map_or("shipped".into(), |m| m.display().to_string());
+            chosen.push(format!("{} ({weights})", family.name()));
         }
         chosen
     }
 
-    /// Follows the designer: its family is offered when a trained model is attached to it.
+    /// Follows the designer: its family is offered when a trained model is attached to it, or
+    /// a shipped model has its layout (`None`: read with that one).
     fn sync_design(&mut self, studio_design: Option<&super::design::Design>) {
         let attached = studio_design.and_then(|d| {
             let family = d.validation().as_ref().ok()?;
-            let model = super::train::attached_model(d.path.as_ref()?);
-            model.exists().then_some((family, model))
+            let trained = (d.path.as_ref())
+                .map(|p| super::train::attached_model(p))
+                .filter(|m| m.exists());
+            match trained {
+                Some(model) => Some((family, Some(model))),
+                None => shipped_model_for(family).map(|_| (family, None)),
+            }
         });
         match (attached, &mut self.design) {
             (Some((f, m)), Some((family, model, _)))
@@ -262,7 +272,7 @@ impl DetectState {
         }
         let request = DetectRequest {
             families,
-            design: design.map(|(f, m)| (f.spec().clone(), m.to_path_buf())),
+            design: design.map(|(f, m)| (f.spec().clone(), m.map(|m| m.to_path_buf()))),
             settings: self.settings.clone(),
             name: image.name.clone(),
             width: image.gray.width,
@@ -563,8 +573,12 @@ pub fn show(studio: &mut Studio, ui: &mut egui::Ui, ctx: &egui::Context) {
                 state.stale = true;
             }
         }
-        if let Some((family, _, on)) = &mut state.design {
-            let label = format!("{} (the design's trained model)", family.name());
+        if let Some((family, model, on)) = &mut state.design {
+            let weights = match model {
+                Some(_) => "the design's trained model",
+                None => "the shipped model of its layout",
+            };
+            let label = format!("{} ({weights})", family.name());
             if ui.checkbox(on, label).changed() {
                 state.stale = true;
             }

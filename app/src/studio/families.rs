@@ -6,7 +6,7 @@ use super::train::attached_model;
 use super::{preview, Studio};
 use egui::{ColorImage, TextureHandle, TextureOptions};
 use std::path::PathBuf;
-use tagsmith::detect::stage2::shipped_families;
+use tagsmith::detect::stage2::shipped_model_for;
 use tagsmith::family::{Family, FamilySpec};
 
 /// Pixels across a thumbnail: twice its size on screen, so it stays sharp on high-DPI displays.
@@ -40,6 +40,9 @@ pub struct Entry {
     pub code_len: usize,
     pub keypoints: usize,
     pub codes: usize,
+    /// Whether a shipped model reads it ([`shipped_model_for`]): a built-in's own, or the model
+    /// of its layout for a user's family (a grid design with a code table of its own).
+    shipped_weights: bool,
     thumbnail: Thumbnail,
 }
 
@@ -70,6 +73,7 @@ impl Entry {
             code_len: family.code_len(),
             keypoints: family.keypoints().len(),
             codes: family.codebook().len(),
+            shipped_weights: shipped_model_for(family).is_some(),
             thumbnail: Thumbnail {
                 image: thumbnail(family),
                 texture: None,
@@ -91,11 +95,12 @@ impl Entry {
     }
 
     /// Whether the detector reads this family, and how the gallery says it: with the weights
-    /// shipped for a built-in, or with a model the Train panel attached beside the user's file.
+    /// shipped for a built-in, with a model the Train panel attached beside the user's file, or
+    /// with the shipped model of the user's family's layout.
     pub fn detection(&self) -> (bool, &'static str) {
         let file = match &self.origin {
             Origin::Builtin => {
-                return if shipped_families().any(|f| f == self.spec.name) {
+                return if self.shipped_weights {
                     (true, "detects: shipped weights")
                 } else {
                     (false, "no shipped weights: train them in Train")
@@ -106,6 +111,8 @@ impl Entry {
         };
         if file.is_some_and(|f| attached_model(f).is_file()) {
             (true, "detects: your trained model")
+        } else if self.shipped_weights {
+            (true, "detects: the shipped model of its layout")
         } else {
             (false, "no weights yet: train them in Train")
         }

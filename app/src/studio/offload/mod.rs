@@ -22,8 +22,9 @@ use tagsmith::family::FamilySpec;
 pub struct DetectRequest {
     /// Built-in families, read with their shipped weights.
     pub families: Vec<String>,
-    /// The design being edited and its trained model file (desktop only).
-    pub design: Option<(FamilySpec, PathBuf)>,
+    /// The design being edited and its trained model file (desktop only), or `None` for the
+    /// shipped model of its layout.
+    pub design: Option<(FamilySpec, Option<PathBuf>)>,
     pub settings: DetectorSettings,
     /// The image's name, for the log line and the detections file.
     pub name: String,

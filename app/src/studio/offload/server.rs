@@ -13,7 +13,7 @@ use tagsmith::geometry::Camera;
 use tagsmith::image::GrayImage;
 
 /// Which families a detector reads: built-ins by name, and the design's model file.
-type DetectorKey = (Vec<String>, Option<(String, PathBuf)>);
+type DetectorKey = (Vec<String>, Option<(String, Option<PathBuf>)>);
 
 #[derive(Default)]
 pub struct Server {
@@ -39,7 +39,7 @@ impl Server {
             self.detector = None;
             let detector = build_detector(
                 &request.families,
-                design.as_ref().map(|(f, m)| (f, m.as_path())),
+                design.as_ref().map(|(f, m)| (f, m.as_deref())),
                 &request.settings,
             )?;
             self.detector = Some((key, detector));
@@ -71,10 +71,10 @@ impl Server {
 }
 
 /// The shipped stage 1 with the shipped weights of `families` (built-ins) and the design's own
-/// model, run as `settings` say.
+/// model (`None`: the shipped model of its layout), run as `settings` say.
 pub fn build_detector(
     families: &[String],
-    design: Option<(&Family, &Path)>,
+    design: Option<(&Family, Option<&Path>)>,
     settings: &DetectorSettings,
 ) -> Result<Detector, String> {
     let mut readers = Vec::new();
@@ -87,7 +87,15 @@ pub fn build_detector(
         readers.push(FamilyReader::shipped(family).map_err(|e| e.to_string())?);
     }
     if let Some((family, model)) = design {
-        let stage2 = Stage2::load(model, family).map_err(|e| e.to_string())?;
+        let stage2 = match model {
+            Some(model) => Stage2::load(model, family).map_err(|e| e.to_string())?,
+            None => Stage2::shipped(family)
+                .ok_or(format!(
+                    "{}: no shipped model has its layout",
+                    family.name()
+                ))?
+                .map_err(|e| e.to_string())?,
+        };
         readers.push(FamilyReader::new(family.clone(), stage2));
     }
     if readers.is_empty() {

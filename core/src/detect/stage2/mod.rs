@@ -136,6 +136,35 @@ pub fn shipped_model(family: &str) -> Option<&'static [u8]> {
         .map(|(_, asset)| crate::assets::file(asset))
 }
 
+/// The shipped stage-2 model that reads `family`, with the asset it is: a built-in's own, or
+/// for a family not built in, the model trained on its layout (the same cells, categories,
+/// keypoints and ROI: [`model_file::family_hash`]). The network never sees a codebook, so a
+/// user's grid design with a code table of its own reads with no training, as ArUco MIP 36h12
+/// and ARToolKitPlus read on the model of 36h11 and 6x6_250.
+#[cfg(feature = "detect")]
+pub fn shipped_model_for(family: &crate::Family) -> Option<(&'static str, &'static [u8])> {
+    if let Some((_, asset)) = SHIPPED.iter().find(|(name, _)| *name == family.name()) {
+        return Some((asset, crate::assets::file(asset)));
+    }
+    // Each shipped model's layout, read once.
+    static LAYOUTS: std::sync::OnceLock<Vec<(&'static str, String)>> = std::sync::OnceLock::new();
+    let layouts = LAYOUTS.get_or_init(|| {
+        let mut assets: Vec<&'static str> = SHIPPED.iter().map(|(_, asset)| *asset).collect();
+        assets.sort_unstable();
+        assets.dedup();
+        (assets.into_iter())
+            .filter_map(|asset| {
+                let (header, _) =
+                    model_file::read_header(crate::assets::file(asset), asset).ok()?;
+                Some((asset, header.family_hash))
+            })
+            .collect()
+    });
+    let hash = model_file::family_hash(family);
+    let (asset, _) = layouts.iter().find(|(_, layout)| *layout == hash)?;
+    Some((asset, crate::assets::file(asset)))
+}
+
 /// The network's input: each patch standardised to zero mean and unit contrast, so the marker's
 /// gray levels and lighting (black is not 0, white not 255 in the training data) do not matter.
 #[cfg(feature = "detect")]

@@ -147,10 +147,11 @@ impl Stage2 {
         Ok(Self::new(&net, header, family))
     }
 
-    /// The weights shipped for a built-in family; `None` when it has none.
+    /// The shipped weights that read `family` ([`super::shipped_model_for`]: a built-in's own,
+    /// or those of its layout); `None` when none do.
     pub fn shipped(family: &Family) -> Option<Result<Self, ModelError>> {
-        let bytes = super::shipped_model(family.name())?;
-        let name = format!("shipped weights of {}", family.name());
+        let (asset, bytes) = super::shipped_model_for(family)?;
+        let name = format!("shipped weights assets/{asset} for {}", family.name());
         Some(Self::from_bytes(bytes, &name, family))
     }
 

@@ -1,9 +1,9 @@
 //! The shipped weights on whole images: a marker rendered by a pinhole camera at a known pose,
 //! with sensor noise and blur, found from a rough ROI.
 
-use super::shipped_model;
 use super::ReadOptions;
 use super::Stage2;
+use super::{shipped_model, shipped_model_for};
 use crate::builtin;
 use crate::detect::plain_net::largest_difference;
 use crate::detect::refine::RefineMode;
@@ -49,6 +49,33 @@ fn the_7x7_grid_model_decodes_noisy_25h9_and_5x5_markers_and_their_poses() {
     decodes_noisy_markers("aruco-5x5_100");
 }
 
+/// A user's family that is not built in, with a code table of its own on a layout a shipped
+/// model was trained on (a 7 × 7 grid: 5 × 5 data cells), reads with that model and no training.
+#[test]
+fn a_users_grid_family_with_its_own_codes_reads_with_the_model_of_its_layout() {
+    let mut spec = builtin::get("aruco-5x5_100")
+        .unwrap()
+        .unwrap()
+        .spec()
+        .clone();
+    spec.name = "my-5x5".into();
+    spec.codebook.codes = spec.codebook.codes[50..].iter().rev().cloned().collect();
+    let family = crate::Family::from_spec(spec).unwrap();
+    let (asset, _) = shipped_model_for(&family).expect("the 7 × 7 grid model");
+    assert_eq!(asset, "models/grid-7-bw.stage2.bin");
+    assert!(shipped_model(family.name()).is_none());
+    decodes_noisy_markers_of(&family);
+    // Another layout (TopoTag-like's 9 × 9 cells of three categories) has none to read with.
+    let mut spec = builtin::get("topotag-like")
+        .unwrap()
+        .unwrap()
+        .spec()
+        .clone();
+    spec.name = "my-topo".into();
+    let family = crate::Family::from_spec(spec).unwrap();
+    assert!(shipped_model_for(&family).is_none());
+}
+
 /// One 5 cm marker seen by a pinhole camera in the distance and view-angle ranges, with this
 /// sensor noise and blur, and no spotlight, motion blur or lens distortion: the network's
 /// reading alone decides what is read.
@@ -73,8 +100,12 @@ fn one_marker_scene(
 }
 
 fn decodes_noisy_markers(name: &str) {
-    let family = builtin::get(name).unwrap().unwrap();
-    let bytes = shipped_model(family.name()).expect("the weights are shipped");
+    decodes_noisy_markers_of(&builtin::get(name).unwrap().unwrap());
+}
+
+fn decodes_noisy_markers_of(family: &crate::Family) {
+    let family = family.clone();
+    let (_, bytes) = shipped_model_for(&family).expect("the weights are shipped");
     let model = Stage2::from_bytes(bytes, "shipped", &family).unwrap();
     let mut config = one_marker_scene([0.25, 0.4], [0.0, 45.0], 4.0, 0.6);
     config.augment.marker_black = [20.0, 50.0];
