@@ -1,5 +1,5 @@
 //! The Compare panel: "which design suits my scene". The user picks 2–4 families that detect
-//! (shipped weights or a trained model) and describes the scene; every family reads the same
+//! (shipped weights, a trained model, or the shipped model of their layout) and describes the scene; every family reads the same
 //! rendered scenes (`tagsmith::eval::designs`), and the panel plots recall and pose errors
 //! against the swept condition as the run goes, with the verdict, a table and the worst reads.
 //! `tagsmith eval compare-designs` computes the same report from the command line.
@@ -39,11 +39,12 @@ struct Running {
     worker: Option<super::offload::web::WebWorker>,
 }
 
-/// A comparison of built-in families with their shipped weights, as a browser's worker runs it.
+/// A comparison of families read with shipped weights (built-ins, and the user's families on a
+/// shipped model's layout), as a browser's worker runs it.
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct CompareRequest {
     pub scenario: Scenario,
-    pub families: Vec<String>,
+    pub families: Vec<tagsmith::family::FamilySpec>,
 }
 
 /// Runs `request` to its end, handing out the report after each scene.
@@ -52,13 +53,10 @@ pub fn run_shipped(
     mut publish: impl FnMut(Snapshot),
 ) -> Result<(), String> {
     let mut families = Vec::new();
-    for name in &request.families {
-        let family = match tagsmith::builtin::get(name) {
-            Some(family) => family.map_err(|e| e.to_string())?,
-            None => return Err(format!("{name} is not a built-in family")),
-        };
+    for spec in request.families {
+        let family = Family::from_spec(spec).map_err(|e| e.to_string())?;
         let stage2 = Stage2::shipped(&family)
-            .ok_or(format!("{name} has no shipped weights"))?
+            .ok_or(format!("{} has no shipped weights", family.name()))?
             .map_err(|e| e.to_string())?;
         families.push((family, stage2));
     }
@@ -161,7 +159,7 @@ impl CompareState {
     ) -> Result<(), String> {
         let scenario = self.scenario()?;
         #[cfg(target_arch = "wasm32")]
-        let names: Vec<String> = families.iter().map(|(f, _)| f.name().to_string()).collect();
+        let specs: Vec<_> = families.iter().map(|(f, _)| f.spec().clone()).collect();
         let (run, detectors) = prepare(scenario.clone(), families)?;
         let snapshot = Arc::new(Mutex::new(Some(Snapshot {
             report: run.report(),
@@ -217,7 +215,7 @@ impl CompareState {
             })?;
             let request = CompareRequest {
                 scenario,
-                families: names,
+                families: specs,
             };
             worker.post(1, &ToWorker::Compare(request), &[]);
             self.running = Some(Running {

@@ -181,7 +181,10 @@ impl DetectState {
             let weights = model
                 .as_ref()
                 .map_or("shipped".into(), |m| m.display().to_string());
-            chosen.push(format!("{} ({weights})", family.name()));
+            // A model trained again in place reads with its new weights.
+            let written =
+                (model.as_ref()).and_then(|m| std::fs::metadata(m).and_then(|m| m.modified()).ok());
+            chosen.push(format!("{} ({weights}, {written:?})", family.name()));
         }
         chosen
     }
@@ -200,11 +203,18 @@ impl DetectState {
             }
         });
         match (attached, &mut self.design) {
+            // The whole spec, not the name: a duplicate's code table edited reads with the new
+            // one.
             (Some((f, m)), Some((family, model, _)))
-                if f.name() == family.name() && m == *model => {}
-            (Some((f, m)), _) => {
-                // Cloned only when the design or its model changed, not every frame.
-                self.design = Some((f.clone(), m, true));
+                if f.spec() == family.spec() && m == *model => {}
+            (Some((f, m)), design) => {
+                // Cloned only when the design or its model changed, not every frame; an edit
+                // of the same design keeps its tick.
+                let on = design
+                    .as_ref()
+                    .is_none_or(|(family, _, on)| *on || family.name() != f.name());
+                self.design = Some((f.clone(), m, on));
+                self.detector = None;
                 self.stale = true;
             }
             (None, Some(_)) => {

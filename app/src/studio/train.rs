@@ -69,8 +69,9 @@ mod desktop {
         pub folder: String,
     }
 
-    /// A fine-tune's steps and learning rate: the shipped grid model's own (3000 steps at
-    /// 0.0003 from 36h11's weights, BENCHMARKS.md "One model for one layout").
+    /// A fine-tune's steps and learning rate, whichever shipped model it starts from: the
+    /// shipped grid model's own (3000 steps at 0.0003 from 36h11's weights, BENCHMARKS.md "One
+    /// model for one layout").
     pub const FINE_TUNE_STEPS: u64 = 3000;
     pub const FINE_TUNE_LEARNING_RATE: f64 = 0.0003;
 

@@ -4,16 +4,21 @@
 use super::{DetectRequest, Detected, Reply, Shown};
 use crate::settings::DetectorSettings;
 use std::path::{Path, PathBuf};
+use std::time::SystemTime;
 use tagsmith::detect::detector::FamilyReader;
 use tagsmith::detect::stage1::Stage1;
 use tagsmith::detect::stage2::Stage2;
 use tagsmith::detect::{BenchDetector, Detector, Found};
-use tagsmith::family::Family;
+use tagsmith::family::{Family, FamilySpec};
 use tagsmith::geometry::Camera;
 use tagsmith::image::GrayImage;
 
-/// Which families a detector reads: built-ins by name, and the design's model file.
-type DetectorKey = (Vec<String>, Option<(String, Option<PathBuf>)>);
+/// Which families a detector reads: built-ins by name, and the design (its whole spec: an edited
+/// code table is another detector) with its model file and when that was written.
+type DetectorKey = (
+    Vec<String>,
+    Option<(FamilySpec, Option<PathBuf>, Option<SystemTime>)>,
+);
 
 #[derive(Default)]
 pub struct Server {
@@ -31,9 +36,11 @@ impl Server {
         };
         let key: DetectorKey = (
             request.families.clone(),
-            design
-                .as_ref()
-                .map(|(f, m)| (f.name().to_string(), m.clone())),
+            design.as_ref().map(|(f, m)| {
+                let written =
+                    (m.as_ref()).and_then(|m| std::fs::metadata(m).and_then(|m| m.modified()).ok());
+                (f.spec().clone(), m.clone(), written)
+            }),
         );
         if self.detector.as_ref().is_none_or(|(k, _)| *k != key) {
             self.detector = None;

@@ -54,8 +54,8 @@ pub fn in_worker() -> bool {
 /// turn.
 pub fn serve_in_worker() {
     wasm_bindgen_futures::spawn_local(async {
-        // Detection needs none of them: a worker without them still detects, and says why it
-        // cannot compare.
+        // The weights are among them: a worker without them says why it can neither detect nor
+        // compare.
         let assets = crate::web::load_assets().await;
         if let Err(e) = &assets {
             log::error!("the worker could not load the studio's files: {e}");
@@ -75,7 +75,10 @@ fn serve(assets: Result<(), String>) {
             let post = |m: &FromWorker| post(&reply_to, m);
             match read_request(&message) {
                 Ok(ToWorker::Detect(request)) => {
-                    let reply = server.borrow_mut().serve(request);
+                    let reply = match &assets {
+                        Ok(()) => server.borrow_mut().serve(request),
+                        Err(e) => Err(format!("the studio's files did not load: {e}")),
+                    };
                     post(&FromWorker::Detected {
                         ticket,
                         reply: Box::new(reply),

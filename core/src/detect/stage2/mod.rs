@@ -119,13 +119,12 @@ pub fn fine_tune_start(family: &crate::Family) -> Option<FineTuneStart> {
             fresh_class_head: false,
         });
     }
-    let (asset, net) = candidates().next()?;
-    model_file::check_patch(net, asset, family)
-        .is_ok()
-        .then_some(FineTuneStart {
-            asset,
-            fresh_class_head: true,
-        })
+    let (asset, _) =
+        candidates().find(|(asset, net)| model_file::check_patch(net, asset, family).is_ok())?;
+    Some(FineTuneStart {
+        asset,
+        fresh_class_head: true,
+    })
 }
 
 /// The shipped stage-2 model file of a built-in family, if it has one.
@@ -138,31 +137,45 @@ pub fn shipped_model(family: &str) -> Option<&'static [u8]> {
 
 /// The shipped stage-2 model that reads `family`, with the asset it is: a built-in's own, or
 /// for a family not built in, the model trained on its layout (the same cells, categories,
-/// keypoints and ROI: [`model_file::family_hash`]). The network never sees a codebook, so a
-/// user's grid design with a code table of its own reads with no training, as ArUco MIP 36h12
-/// and ARToolKitPlus read on the model of 36h11 and 6x6_250.
+/// keypoints and ROI: [`model_file::family_hash`], on the same background). The network never
+/// sees a codebook, so a user's grid design with a code table of its own reads with no training,
+/// as ArUco MIP 36h12 and ARToolKitPlus read on the model of 36h11 and 6x6_250. A family named
+/// like a built-in but drawn otherwise gets none.
 #[cfg(feature = "detect")]
 pub fn shipped_model_for(family: &crate::Family) -> Option<(&'static str, &'static [u8])> {
-    if let Some((_, asset)) = SHIPPED.iter().find(|(name, _)| *name == family.name()) {
-        return Some((asset, crate::assets::file(asset)));
+    /// A shipped model's layout and the background of the built-ins it reads.
+    struct Layout {
+        asset: &'static str,
+        hash: String,
+        background: String,
     }
-    // Each shipped model's layout, read once.
-    static LAYOUTS: std::sync::OnceLock<Vec<(&'static str, String)>> = std::sync::OnceLock::new();
+    // Read once: the studio asks while it draws.
+    static LAYOUTS: std::sync::OnceLock<Vec<Layout>> = std::sync::OnceLock::new();
     let layouts = LAYOUTS.get_or_init(|| {
-        let mut assets: Vec<&'static str> = SHIPPED.iter().map(|(_, asset)| *asset).collect();
-        assets.sort_unstable();
-        assets.dedup();
-        (assets.into_iter())
-            .filter_map(|asset| {
-                let (header, _) =
-                    model_file::read_header(crate::assets::file(asset), asset).ok()?;
-                Some((asset, header.family_hash))
-            })
-            .collect()
+        let mut layouts: Vec<Layout> = Vec::new();
+        for (name, asset) in SHIPPED {
+            if layouts.iter().any(|l| l.asset == *asset) {
+                continue;
+            }
+            let header = model_file::read_header(crate::assets::file(asset), asset);
+            if let (Ok((header, _)), Some(Ok(builtin))) = (header, crate::builtin::get(name)) {
+                layouts.push(Layout {
+                    asset,
+                    hash: header.family_hash,
+                    background: builtin.spec().background.clone(),
+                });
+            }
+        }
+        layouts
     });
     let hash = model_file::family_hash(family);
-    let (asset, _) = layouts.iter().find(|(_, layout)| *layout == hash)?;
-    Some((asset, crate::assets::file(asset)))
+    let fits = |l: &&Layout| l.hash == hash && l.background == family.spec().background;
+    let own = SHIPPED.iter().find(|(name, _)| *name == family.name());
+    let layout = match own {
+        Some((_, asset)) => layouts.iter().find(|l| l.asset == *asset).filter(fits)?,
+        None => layouts.iter().find(fits)?,
+    };
+    Some((layout.asset, crate::assets::file(layout.asset)))
 }
 
 /// The network's input: each patch standardised to zero mean and unit contrast, so the marker's

@@ -67,8 +67,9 @@ impl KeypointStage {
 
     /// Starts from the weights of the stage-2 model file `bytes` (called `name` in errors and
     /// the report) instead of fresh ones: fine-tuning. The network's width is the model's. The
-    /// model may have learned another layout of the same categories (the shipped 8 × 8 grid
-    /// model for a 6 × 6 or 7 × 7 grid): what it learned of cells and frames carries over.
+    /// model may have learned another layout (the shipped 8 × 8 grid model for a 6 × 6 or 7 × 7
+    /// grid) or other categories (its class head then starts fresh): what it learned of cells
+    /// and frames carries over.
     pub fn starting_from(mut self, bytes: Vec<u8>, name: &str) -> Result<Self, String> {
         let (_, header) = model_file::to_fine_tune(&bytes, name, &self.family, &Device::flex())
             .map_err(|e| e.to_string())?;
