@@ -66,6 +66,7 @@ assets!(
         "models/grid-7-bw.stage2.bin",
         "models/grid-8-bw.stage2.bin",
         "models/apriltag-xo-36h11.stage2.bin",
+        "models/topotag-like.stage2.bin",
     ],
 );
 
@@ -152,7 +153,7 @@ mod tests {
         for path in MODELS.iter().copied() {
             assert!(file(path).starts_with(b"TAGSMITH"), "{path}");
         }
-        assert_eq!(all().count(), 17);
+        assert_eq!(all().count(), 18);
     }
 
     #[test]

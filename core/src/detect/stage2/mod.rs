@@ -53,6 +53,8 @@ const SHIPPED: &[(&str, &str)] = &[
     // Never trained on: the same layout as the two above, each read with its own codebook.
     ("aruco-mip-36h12", GRID_8_BLACK_WHITE),
     ("artoolkitplus-bch", GRID_8_BLACK_WHITE),
+    // Fine-tuned from the XO model (three categories too: a black ground, a disc, a ring).
+    ("topotag-like", "models/topotag-like.stage2.bin"),
 ];
 
 /// The built-in families with shipped stage-2 weights.

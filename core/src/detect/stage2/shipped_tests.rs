@@ -49,6 +49,13 @@ fn the_7x7_grid_model_decodes_noisy_25h9_and_5x5_markers_and_their_poses() {
     decodes_noisy_markers("aruco-5x5_100");
 }
 
+/// TopoTag-like's model, fine-tuned from the XO model: a 9 × 9 black square whose vertex cells
+/// carry a disc or a ring.
+#[test]
+fn the_topotag_model_decodes_a_noisy_marker_and_its_pose() {
+    decodes_noisy_markers("topotag-like");
+}
+
 /// A user's family that is not built in, with a code table of its own on a layout a shipped
 /// model was trained on (a 7 × 7 grid: 5 × 5 data cells), reads with that model and no training.
 #[test]
