@@ -67,6 +67,7 @@ assets!(
         "models/grid-8-bw.stage2.bin",
         "models/apriltag-xo-36h11.stage2.bin",
         "models/topotag-like.stage2.bin",
+        "models/quaternary-6x6.stage2.bin",
     ],
 );
 
@@ -153,7 +154,7 @@ mod tests {
         for path in MODELS.iter().copied() {
             assert!(file(path).starts_with(b"TAGSMITH"), "{path}");
         }
-        assert_eq!(all().count(), 18);
+        assert_eq!(all().count(), 19);
     }
 
     #[test]

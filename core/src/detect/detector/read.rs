@@ -35,7 +35,7 @@ impl FamilyReader {
 
     /// Whether the detector keeps a read of a proposal with this trust and ROI score.
     ///
-    /// A read needing more than half the corrections must decode alike in every pass and fit
+    /// A uniform code is not kept unless [`AcceptParams::read_uniform_codes`] says so. A read needing more than half the corrections must decode alike in every pass and fit
     /// a rigid pose closely ([`AcceptParams::max_weak_read_rms_pitch`]): a misread of a marker
     /// under heavy noise lands on some code within the limit, and the next pass, from a ROI that
     /// moved, on another or on none, where a right read decodes again; a quad across a row of
@@ -51,7 +51,10 @@ impl FamilyReader {
     ) -> bool {
         let limit = self.correction_limit(params);
         let fits = |max: f64| self.rms_pitch(m).is_none_or(|rms| rms <= max);
-        m.corrected_errors <= limit
+        let uniform = (self.family.codebook().code(m.id))
+            .is_some_and(|code| code.windows(2).all(|pair| pair[0] == pair[1]));
+        (params.read_uniform_codes || !uniform)
+            && m.corrected_errors <= limit
             && m.corrected_errors <= trust.allowed(limit, roi_score, params.weak_roi_score)
             && (m.corrected_errors <= limit / 2
                 || (m.passes_agree

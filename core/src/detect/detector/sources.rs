@@ -232,6 +232,11 @@ pub struct AcceptParams {
     /// correction or two often enough to matter, where codes of 25 bits and more do not
     /// (BENCHMARKS.md, "Every family detecting").
     pub min_symbols_to_correct: usize,
+    /// Whether a code whose every symbol is the same is read. Quaternary 6×6's ID 0 (every cell
+    /// solid) is a black square with its orientation mark; a dark square of clutter reads as it,
+    /// and the network is no surer of the marker's keypoints than of the clutter's, so neither is
+    /// read (BENCHMARKS.md, "Every family detecting"). No built-in code of two symbols is uniform.
+    pub read_uniform_codes: bool,
 }
 
 impl Default for AcceptParams {
@@ -241,6 +246,7 @@ impl Default for AcceptParams {
             max_weak_read_rms_pitch: 0.25,
             max_keypoint_read_rms_pitch: 0.1,
             min_symbols_to_correct: 20,
+            read_uniform_codes: false,
         }
     }
 }

@@ -94,6 +94,20 @@ fn a_read_from_a_failed_passs_keypoints_needing_many_corrections_must_fit_its_po
     ));
 }
 
+/// A uniform code (quaternary's ID 0, every cell solid: a black square with its orientation
+/// mark) is not read, as a dark square of clutter would be read as it; its other codes are.
+#[test]
+fn a_uniform_code_is_not_read_unless_asked() {
+    let family = crate::builtin::get("quaternary-6x6").unwrap().unwrap();
+    let reader = FamilyReader::shipped(family).unwrap();
+    let mut params = AcceptParams::default();
+    let read = |id: usize| Stage2Result { id, ..a_read(0) };
+    assert!(!reader.accepts(&read(0), Trust::First, 0.9, &params));
+    assert!(reader.accepts(&read(1), Trust::First, 0.9, &params));
+    params.read_uniform_codes = true;
+    assert!(reader.accepts(&read(0), Trust::First, 0.9, &params));
+}
+
 /// A 16-bit code is read only as it is, however well its ROI scored; 25-bit codes are still
 /// corrected.
 #[test]

@@ -55,6 +55,8 @@ const SHIPPED: &[(&str, &str)] = &[
     ("artoolkitplus-bch", GRID_8_BLACK_WHITE),
     // Fine-tuned from the XO model (three categories too: a black ground, a disc, a ring).
     ("topotag-like", "models/topotag-like.stage2.bin"),
+    // The grid model's trunk with a class head of its own (five categories).
+    ("quaternary-6x6", "models/quaternary-6x6.stage2.bin"),
 ];
 
 /// The built-in families with shipped stage-2 weights.

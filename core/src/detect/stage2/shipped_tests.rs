@@ -56,6 +56,13 @@ fn the_topotag_model_decodes_a_noisy_marker_and_its_pose() {
     decodes_noisy_markers("topotag-like");
 }
 
+/// Quaternary 6×6's model, fine-tuned from the grid model's trunk with a fresh class head: four
+/// cell shapes and the orientation mark.
+#[test]
+fn the_quaternary_model_decodes_a_noisy_marker_and_its_pose() {
+    decodes_noisy_markers("quaternary-6x6");
+}
+
 /// A user's family that is not built in, with a code table of its own on a layout a shipped
 /// model was trained on (a 7 × 7 grid: 5 × 5 data cells), reads with that model and no training.
 #[test]
