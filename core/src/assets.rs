@@ -68,6 +68,7 @@ assets!(
         "models/apriltag-xo-36h11.stage2.bin",
         "models/topotag-like.stage2.bin",
         "models/quaternary-6x6.stage2.bin",
+        "models/apriltag-xa-36h11.stage2.bin",
     ],
 );
 
@@ -154,7 +155,7 @@ mod tests {
         for path in MODELS.iter().copied() {
             assert!(file(path).starts_with(b"TAGSMITH"), "{path}");
         }
-        assert_eq!(all().count(), 19);
+        assert_eq!(all().count(), 20);
     }
 
     #[test]

@@ -384,7 +384,8 @@ pub fn quaternary_6x6() -> Result<FamilySpec, DesignError> {
         "Quaternary 6×6",
         "36 quaternary cells (solid, blank, dot, window) in a black frame; the top-left frame cell \
          carries a white triangle that fixes the orientation, so every code is admissible, the \
-         all-zero one included.",
+         all-zero one included; that one (ID 0, every cell solid) prints but is not detected: a \
+         dark square of clutter would read as it.",
         "Design after DeepTag's quaternary markers (Zhang et al., TPAMI 2023).",
         cells,
         legend(&[("b", "solid"), ("o", "orientation")]),

@@ -47,6 +47,8 @@ const SHIPPED: &[(&str, &str)] = &[
     ("apriltag-25h9", GRID_7_BLACK_WHITE),
     ("apriltag-36h11", GRID_8_BLACK_WHITE),
     ("apriltag-xo-36h11", "models/apriltag-xo-36h11.stage2.bin"),
+    // Fine-tuned from the XO model: the same frame, an X for 0 and a filled triangle for 1.
+    ("apriltag-xa-36h11", "models/apriltag-xa-36h11.stage2.bin"),
     ("aruco-4x4_50", GRID_6_BLACK_WHITE),
     ("aruco-5x5_100", GRID_7_BLACK_WHITE),
     ("aruco-6x6_250", GRID_8_BLACK_WHITE),

@@ -49,6 +49,11 @@ fn the_7x7_grid_model_decodes_noisy_25h9_and_5x5_markers_and_their_poses() {
     decodes_noisy_markers("aruco-5x5_100");
 }
 
+#[test]
+fn shipped_xa_weights_decode_a_noisy_marker_and_its_pose() {
+    decodes_noisy_markers("apriltag-xa-36h11");
+}
+
 /// TopoTag-like's model, fine-tuned from the XO model: a 9 × 9 black square whose vertex cells
 /// carry a disc or a ring.
 #[test]
