@@ -75,6 +75,7 @@ pub const DEFAULT_FAMILIES: &[&str] = &["apriltag-36h11", "apriltag-xo-36h11", "
 
 /// The shipped models a new design's stage 2 can be fine-tuned from, in the order they are
 /// preferred: the grid model (two categories) and the XO model (a frame and two glyphs).
+#[cfg(feature = "detect")]
 const FINE_TUNE_MODELS: &[&str] = &[GRID_8_BLACK_WHITE, "models/apriltag-xo-36h11.stage2.bin"];
 
 /// Where a new design's stage 2 starts when fine-tuned ([`fine_tune_start`]).
