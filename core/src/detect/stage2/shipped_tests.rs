@@ -84,13 +84,17 @@ fn a_users_grid_family_with_its_own_codes_reads_with_the_model_of_its_layout() {
     assert_eq!(asset, "models/grid-7-bw.stage2.bin");
     assert!(shipped_model(family.name()).is_none());
     decodes_noisy_markers_of(&family);
-    // Another layout (TopoTag-like's 9 × 9 cells of three categories) has none to read with.
-    let mut spec = builtin::get("topotag-like")
+    // On a dark background its white cells are not what the model learned.
+    let mut dark = family.spec().clone();
+    dark.background = "#303030".into();
+    assert!(shipped_model_for(&crate::Family::from_spec(dark).unwrap()).is_none());
+    // A layout no shipped model learned (tagStandard41h12's, cells outside the frame) has none.
+    let mut spec = builtin::get("apriltag-standard41h12")
         .unwrap()
         .unwrap()
         .spec()
         .clone();
-    spec.name = "my-topo".into();
+    spec.name = "my-41h12".into();
     let family = crate::Family::from_spec(spec).unwrap();
     assert!(shipped_model_for(&family).is_none());
 }
