@@ -90,7 +90,8 @@ impl Family {
         self.inner.spec().print.marker_side_mm
     }
 
-    /// Whether weights for this family ship with Tagsmith.
+    /// Whether weights that read this family ship with Tagsmith: a built-in's own, or those of
+    /// its layout.
     #[getter]
     fn has_shipped_weights(&self) -> bool {
         tagsmith::detect::stage2::shipped_model_for(&self.inner).is_some()

@@ -343,8 +343,9 @@ class Family:
         millimetres."""
     @property
     def has_shipped_weights(self) -> bool:
-        """Whether stage-2 weights for this family ship with Tagsmith (so ``Detector`` can
-        read it without ``models``)."""
+        """Whether stage-2 weights that read this family ship with Tagsmith: a built-in's
+        own, or those of its layout for a family file of yours (so ``Detector`` can read it
+        without ``models``)."""
     def render(
         self, id: int, px: int = 256, quiet_zone: Optional[float] = None
     ) -> NDArray[np.uint8]:

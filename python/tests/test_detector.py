@@ -163,11 +163,15 @@ def test_a_family_file_with_its_model_file(tmp_path):
     renamed = tagsmith.Detector(families=[str(family_file)], models={"my-36h11": str(model)})
     [d] = renamed.detect(scene(tag_id=9))
     assert (d.family, d.tag_id) == ("my-36h11", 9)
-    with pytest.raises(ValueError, match="no weights are shipped"):
-        tagsmith.Detector(families=[str(family_file)])
-    # A ROI the weights never learned is refused, naming the family they were trained for.
+    # With no model named, the shipped model of its layout reads it: no training.
+    [d] = tagsmith.Detector(families=[str(family_file)]).detect(scene(tag_id=9))
+    assert (d.family, d.tag_id) == ("my-36h11", 9)
+    # A ROI the weights never learned is refused, naming the family they were trained for; and
+    # no shipped model has that layout.
     spec["roi"]["margin"] = 0.3
     family_file.write_text(json.dumps(spec))
+    with pytest.raises(ValueError, match="no weights are shipped"):
+        tagsmith.Detector(families=[str(family_file)])
     with pytest.raises(ValueError, match="trained for family \"apriltag-36h11\""):
         tagsmith.Detector(families=[str(family_file)], models={"my-36h11": str(model)})
     with pytest.raises(ValueError, match="none of the families"):
