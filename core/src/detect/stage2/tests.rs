@@ -226,3 +226,24 @@ fn a_fine_tune_across_categories_keeps_the_trunk_and_sizes_the_class_head() {
         .to_string();
     assert!(err.contains("net.patch"), "{err}");
 }
+
+/// Every built-in with shipped weights reads with a model the build embeds (and the browser
+/// fetches): a model missing from `assets::MODELS` would fail only where it is asked for.
+#[cfg(feature = "detect")]
+#[test]
+fn every_shipped_model_is_a_listed_asset_for_its_family() {
+    for name in super::shipped_families() {
+        let family = builtin::get(name).unwrap().unwrap();
+        let (asset, _) = super::shipped_model_for(&family).unwrap_or_else(|| panic!("{name}"));
+        assert!(crate::assets::MODELS.contains(&asset), "{name}: {asset}");
+    }
+    for start in ["apriltag-36h11", "apriltag-xo-36h11", "quaternary-6x6"]
+        .map(|name| super::fine_tune_start(&builtin::get(name).unwrap().unwrap()).unwrap())
+    {
+        assert!(
+            crate::assets::MODELS.contains(&start.asset),
+            "{}",
+            start.asset
+        );
+    }
+}
