@@ -156,8 +156,7 @@ fn compare_from_address(
 
 /// Fetches the files the module does not embed ([`tagsmith::assets::all`]: the font, the
 /// synthesis backgrounds, the samples, the detector's weights; `scripts/build-web.sh` copies
-/// them to `assets/` beside
-/// the page) and hands them to the core. The page waits for them before the studio starts, the
+/// them to `assets/` beside the page) and hands them to the core. The page waits for them before the studio starts, the
 /// worker before it serves; every request is sent at once, so they download side by side.
 pub async fn load_assets() -> Result<(), String> {
     use wasm_bindgen_futures::JsFuture;

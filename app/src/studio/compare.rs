@@ -1,6 +1,6 @@
 //! The Compare panel: "which design suits my scene". The user picks 2–4 families that detect
-//! (shipped weights, a trained model, or the shipped model of their layout) and describes the scene; every family reads the same
-//! rendered scenes (`tagsmith::eval::designs`), and the panel plots recall and pose errors
+//! (shipped weights, a trained model, or the shipped model of their layout) and describes the
+//! scene; every family reads the same rendered scenes (`tagsmith::eval::designs`), and the panel plots recall and pose errors
 //! against the swept condition as the run goes, with the verdict, a table and the worst reads.
 //! `tagsmith eval compare-designs` computes the same report from the command line.
 

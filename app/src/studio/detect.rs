@@ -182,8 +182,7 @@ impl DetectState {
                 .as_ref()
                 .map_or("shipped".into(), |m| m.display().to_string());
             // A model trained again in place reads with its new weights.
-            let written =
-                (model.as_ref()).and_then(|m| std::fs::metadata(m).and_then(|m| m.modified()).ok());
+            let written = model.as_deref().and_then(super::offload::written);
             chosen.push(format!("{} ({weights}, {written:?})", family.name()));
         }
         chosen

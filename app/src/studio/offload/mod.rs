@@ -9,7 +9,7 @@ mod server;
 #[cfg(target_arch = "wasm32")]
 pub mod web;
 
-pub use server::{build_detector, shown, Server};
+pub use server::{build_detector, shown, written, Server};
 
 use crate::settings::DetectorSettings;
 use serde::{Deserialize, Serialize};

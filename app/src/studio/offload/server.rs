@@ -36,11 +36,9 @@ impl Server {
         };
         let key: DetectorKey = (
             request.families.clone(),
-            design.as_ref().map(|(f, m)| {
-                let written =
-                    (m.as_ref()).and_then(|m| std::fs::metadata(m).and_then(|m| m.modified()).ok());
-                (f.spec().clone(), m.clone(), written)
-            }),
+            design
+                .as_ref()
+                .map(|(f, m)| (f.spec().clone(), m.clone(), m.as_deref().and_then(written))),
         );
         if self.detector.as_ref().is_none_or(|(k, _)| *k != key) {
             self.detector = None;
@@ -75,6 +73,12 @@ impl Server {
             detector: BenchDetector::name(detector),
         })
     }
+}
+
+/// When the model file at `path` was last written (`None` where it cannot be read): a model
+/// trained again in place is another detector.
+pub fn written(path: &Path) -> Option<SystemTime> {
+    std::fs::metadata(path).and_then(|m| m.modified()).ok()
 }
 
 /// The shipped stage 1 with the shipped weights of `families` (built-ins) and the design's own

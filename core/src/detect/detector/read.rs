@@ -35,8 +35,9 @@ impl FamilyReader {
 
     /// Whether the detector keeps a read of a proposal with this trust and ROI score.
     ///
-    /// A uniform code is not kept unless [`AcceptParams::read_uniform_codes`] says so. A read needing more than half the corrections must decode alike in every pass and fit
-    /// a rigid pose closely ([`AcceptParams::max_weak_read_rms_pitch`]): a misread of a marker
+    /// A uniform code is not kept unless [`AcceptParams::read_uniform_codes`] says so. A read
+    /// needing more than half the corrections must decode alike in every pass and fit a rigid
+    /// pose closely ([`AcceptParams::max_weak_read_rms_pitch`]): a misread of a marker
     /// under heavy noise lands on some code within the limit, and the next pass, from a ROI that
     /// moved, on another or on none, where a right read decodes again; a quad across a row of
     /// markers read as one code reprojects by a large part of a cell. A read from the keypoints

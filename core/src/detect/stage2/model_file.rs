@@ -109,7 +109,7 @@ pub fn from_bytes(
     family: &Family,
     device: &Device,
 ) -> Result<(Stage2Net, ModelHeader), ModelError> {
-    load_checked(bytes, path, family, device, true)
+    load_checked(bytes, path, family, device)
 }
 
 /// The weights of a model to fine-tune for `family`, which may have another layout than the one
@@ -123,13 +123,13 @@ pub fn to_fine_tune(
     family: &Family,
     device: &Device,
 ) -> Result<(Stage2Net, ModelHeader), ModelError> {
-    let (stored, _) = read_header(bytes, path)?;
-    check_patch(&stored.net, path, family)?;
+    let (header, start) = read_header(bytes, path)?;
+    check_patch(&header.net, path, family)?;
+    let (net, mut header) = load_weights_as_stored(header, start, bytes, path, device)?;
     let classes = family.categories().len() + 1;
-    if stored.net.classes == classes {
-        return load_checked(bytes, path, family, device, false);
+    if header.net.classes == classes {
+        return Ok((net, header));
     }
-    let (net, mut header) = load_weights_as_stored(bytes, path, device)?;
     header.net.classes = classes;
     Ok((net.with_class_head(&header.net, device), header))
 }
@@ -171,12 +171,11 @@ fn load_checked(
     path: &str,
     family: &Family,
     device: &Device,
-    same_layout: bool,
 ) -> Result<(Stage2Net, ModelHeader), ModelError> {
-    let (header, _) = read_header(bytes, path)?;
+    let (header, start) = read_header(bytes, path)?;
     // The weights fit any family with the layout they learned, whatever its name: the codebook
     // only decodes what they read.
-    if same_layout && header.family_hash != family_hash(family) {
+    if header.family_hash != family_hash(family) {
         if header.family != family.name() {
             return Err(ModelError::WrongFamily {
                 path: path.into(),
@@ -190,16 +189,18 @@ fn load_checked(
         });
     }
     check_network(&header.net, path, family)?;
-    load_weights_as_stored(bytes, path, device)
+    load_weights_as_stored(header, start, bytes, path, device)
 }
 
-/// The network the model file describes, its weights loaded and checked.
+/// The network `header` (read from `bytes`, its weights at `start`) describes, its weights
+/// loaded and checked.
 fn load_weights_as_stored(
+    header: ModelHeader,
+    start: usize,
     bytes: &[u8],
     path: &str,
     device: &Device,
 ) -> Result<(Stage2Net, ModelHeader), ModelError> {
-    let (header, start) = read_header(bytes, path)?;
     let weights = checked_weights(bytes, start, &header.weights_fnv, path)?;
     let net = header.net.init(device);
     let network = || {

@@ -72,12 +72,7 @@ fn the_quaternary_model_decodes_a_noisy_marker_and_its_pose() {
 /// model was trained on (a 7 × 7 grid: 5 × 5 data cells), reads with that model and no training.
 #[test]
 fn a_users_grid_family_with_its_own_codes_reads_with_the_model_of_its_layout() {
-    let mut spec = builtin::get("aruco-5x5_100")
-        .unwrap()
-        .unwrap()
-        .spec()
-        .clone();
-    spec.name = "my-5x5".into();
+    let mut spec = renamed("aruco-5x5_100", "my-5x5");
     spec.codebook.codes = spec.codebook.codes[50..].iter().rev().cloned().collect();
     let family = crate::Family::from_spec(spec).unwrap();
     let (asset, _) = shipped_model_for(&family).expect("the 7 × 7 grid model");
@@ -89,14 +84,15 @@ fn a_users_grid_family_with_its_own_codes_reads_with_the_model_of_its_layout() {
     dark.background = "#303030".into();
     assert!(shipped_model_for(&crate::Family::from_spec(dark).unwrap()).is_none());
     // A layout no shipped model learned (tagStandard41h12's, cells outside the frame) has none.
-    let mut spec = builtin::get("apriltag-standard41h12")
-        .unwrap()
-        .unwrap()
-        .spec()
-        .clone();
-    spec.name = "my-41h12".into();
-    let family = crate::Family::from_spec(spec).unwrap();
+    let family = crate::Family::from_spec(renamed("apriltag-standard41h12", "my-41h12")).unwrap();
     assert!(shipped_model_for(&family).is_none());
+}
+
+/// A built-in's spec under a name no built-in has: what a user's copy of it is.
+fn renamed(builtin: &str, name: &str) -> crate::family::FamilySpec {
+    let mut spec = builtin::get(builtin).unwrap().unwrap().spec().clone();
+    spec.name = name.into();
+    spec
 }
 
 /// One 5 cm marker seen by a pinhole camera in the distance and view-angle ranges, with this
