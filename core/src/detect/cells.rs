@@ -22,6 +22,14 @@ pub struct CellReader {
     known: Vec<([f64; 2], f64)>,
     /// Marker units → the unit square spanned by ROI points 0–3.
     to_unit: Homography,
+    /// The known points in unit-square coordinates, and the corners of their bounding box
+    /// there: a score maps each point once, and checks the box against the image once.
+    known_unit: Vec<[f64; 2]>,
+    known_box: [[f64; 2]; 4],
+    /// The known levels' mean and scatter (sum of squared deviations): fixed per family, so
+    /// a score accumulates only the gray levels' sums.
+    level_mean: f64,
+    level_scatter: f64,
     /// The lightest category's level less the darkest's.
     level_range: f64,
 }
@@ -180,10 +188,25 @@ impl CellReader {
         let to_unit = Homography::from_points(&family.roi_points()[..4], &unit).ok()?;
         let level_range = levels.iter().copied().fold(f64::MIN, f64::max)
             - levels.iter().copied().fold(f64::MAX, f64::min);
+        let known_unit: Vec<[f64; 2]> = known.iter().map(|&(p, _)| to_unit.apply(p)).collect();
+        let (mut lo, mut hi) = ([f64::MAX; 2], [f64::MIN; 2]);
+        for p in &known_unit {
+            for a in 0..2 {
+                lo[a] = lo[a].min(p[a]);
+                hi[a] = hi[a].max(p[a]);
+            }
+        }
+        let n = known.len() as f64;
+        let level_mean = known.iter().map(|k| k.1).sum::<f64>() / n;
+        let level_scatter = known.iter().map(|k| (k.1 - level_mean).powi(2)).sum();
         Some(Self {
             levels,
             known,
             to_unit,
+            known_unit,
+            known_box: [lo, [hi[0], lo[1]], hi, [lo[0], hi[1]]],
+            level_mean,
+            level_scatter,
             level_range,
         })
     }
@@ -196,18 +219,57 @@ impl CellReader {
     /// How well the known points fit their levels with the marker at `roi`: the fitted
     /// black-to-white step over the residuals' spread (gray levels), with the fit's gain and
     /// offset. `None` off the image or where the levels do not spread.
+    ///
+    /// This runs for every quad of every frame fit (thousands an image), so it maps points
+    /// from the unit square and sums in one pass; where the known points' box lies inside the
+    /// image, no point needs its own bounds check.
     fn score(&self, image: &GrayImage, roi: &[[f64; 2]; 4]) -> Option<Fitted> {
-        let to_image = self.to_image(roi)?;
-        let mut pairs = Vec::with_capacity(self.known.len());
-        for &(p, level) in &self.known {
-            pairs.push((level, sample(image, to_image.apply(p))?));
+        let n = self.known.len() as f64;
+        if self.level_scatter < 1e-9 * n {
+            return None;
         }
-        let (gain, offset) = fit_line(&pairs)?;
-        let residual = pairs
-            .iter()
-            .map(|&(x, y)| (y - gain * x - offset).powi(2))
-            .sum::<f64>()
-            / pairs.len() as f64;
+        let h = square_to_quad(roi)?;
+        let h = [
+            h[(0, 0)],
+            h[(0, 1)],
+            h[(0, 2)],
+            h[(1, 0)],
+            h[(1, 1)],
+            h[(1, 2)],
+            h[(2, 0)],
+            h[(2, 1)],
+            h[(2, 2)],
+        ];
+        let map = |[u, v]: [f64; 2]| {
+            let w = h[6] * u + h[7] * v + h[8];
+            ([(h[0] * u + h[1] * v + h[2]) / w, (h[3] * u + h[4] * v + h[5]) / w], w)
+        };
+        // The weight w is affine in (u, v), so positive at the box's corners means positive
+        // over the box, whose image is then the convex quad of the corners' images.
+        let (max_x, max_y) = (image.width as f64 - 2.0, image.height as f64 - 2.0);
+        let inside = self.known_box.iter().all(|&c| {
+            let ([x, y], w) = map(c);
+            w > 0.0 && x >= 0.0 && y >= 0.0 && x <= max_x && y <= max_y
+        });
+        let pixels: &[u8] = &image.pixels;
+        let stride = image.width as usize;
+        let (mut sum_y, mut sum_xy, mut sum_yy) = (0.0, 0.0, 0.0);
+        for (&u, &(_, level)) in self.known_unit.iter().zip(&self.known) {
+            let (p, _) = map(u);
+            let gray = if inside {
+                interior_sample(pixels, stride, p[0] as f32, p[1] as f32) as f64
+            } else {
+                sample(image, p)?
+            };
+            sum_y += gray;
+            sum_xy += (level - self.level_mean) * gray;
+            sum_yy += gray * gray;
+        }
+        let mean_y = sum_y / n;
+        let gain = sum_xy / self.level_scatter;
+        let offset = mean_y - gain * self.level_mean;
+        let scatter_y = sum_yy - n * mean_y * mean_y;
+        let residual = (scatter_y - gain * sum_xy).max(0.0) / n;
         Some(Fitted {
             roi: *roi,
             score: gain * self.level_range / (residual + 1.0).sqrt(),
@@ -415,6 +477,24 @@ impl CellReader {
 }
 
 /// Bilinear gray level at an image point; `None` outside the image.
+/// [`GrayImage::sample`] where (`x`, `y`) lies in [0, width − 2] × [0, height − 2], so no clamp
+/// or bounds check is needed: the same arithmetic, the same value.
+#[inline]
+fn interior_sample(pixels: &[u8], stride: usize, x: f32, y: f32) -> f32 {
+    let (x0, y0) = (x as usize, y as usize);
+    let (fx, fy) = (x - x0 as f32, y - y0 as f32);
+    let i = y0 * stride + x0;
+    let at = |i: usize| pixels[i] as f32;
+    crate::image::mix(
+        at(i),
+        at(i + 1),
+        at(i + stride),
+        at(i + stride + 1),
+        fx,
+        fy,
+    )
+}
+
 fn sample(image: &GrayImage, [x, y]: [f64; 2]) -> Option<f64> {
     let inside =
         x >= 0.0 && y >= 0.0 && x <= (image.width - 1) as f64 && y <= (image.height - 1) as f64;
@@ -445,21 +525,6 @@ pub(super) fn square_to_quad(quad: &[[f64; 2]; 4]) -> Option<nalgebra::Matrix3<f
         h,
         1.0,
     ))
-}
-
-/// Least-squares `y = gain · x + offset` through `(x, y)` pairs; `None` when the xs do not
-/// spread (one level only: nothing to tell black from white by).
-fn fit_line(pairs: &[(f64, f64)]) -> Option<(f64, f64)> {
-    let n = pairs.len() as f64;
-    let mx = pairs.iter().map(|p| p.0).sum::<f64>() / n;
-    let my = pairs.iter().map(|p| p.1).sum::<f64>() / n;
-    let sxx: f64 = pairs.iter().map(|p| (p.0 - mx).powi(2)).sum();
-    let sxy: f64 = pairs.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
-    if sxx < 1e-9 * n {
-        return None;
-    }
-    let gain = sxy / sxx;
-    Some((gain, my - gain * mx))
 }
 
 #[cfg(test)]
@@ -609,10 +674,45 @@ pub(super) mod tests {
         assert!(square_to_quad(&[[0.0, 0.0]; 4]).is_none());
     }
 
+    /// The score by its definition: each known point mapped through the ROI's homography and
+    /// sampled with bounds checks, the line fitted in two passes, the residuals summed.
+    fn score_by_definition(reader: &CellReader, image: &GrayImage, roi: &[[f64; 2]; 4]) -> f64 {
+        let to_image = reader.to_image(roi).unwrap();
+        let pairs: Vec<(f64, f64)> = (reader.known.iter())
+            .map(|&(p, level)| (level, sample(image, to_image.apply(p)).unwrap()))
+            .collect();
+        let n = pairs.len() as f64;
+        let mx = pairs.iter().map(|p| p.0).sum::<f64>() / n;
+        let my = pairs.iter().map(|p| p.1).sum::<f64>() / n;
+        let sxx: f64 = pairs.iter().map(|p| (p.0 - mx).powi(2)).sum();
+        let sxy: f64 = pairs.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+        let gain = sxy / sxx;
+        let offset = my - gain * mx;
+        let residual = (pairs.iter())
+            .map(|&(x, y)| (y - gain * x - offset).powi(2))
+            .sum::<f64>()
+            / n;
+        gain * reader.level_range / (residual + 1.0).sqrt()
+    }
+
     #[test]
-    fn the_line_through_black_border_and_white_quiet_zone() {
-        let (gain, offset) = fit_line(&[(0.0, 30.0), (0.0, 34.0), (1.0, 200.0)]).unwrap();
-        assert!((offset - 32.0).abs() < 1e-9 && (gain - 168.0).abs() < 1e-9);
-        assert!(fit_line(&[(0.0, 30.0), (0.0, 40.0)]).is_none());
+    fn the_fast_score_is_the_score_by_definition_inside_and_at_the_edge_of_the_image() {
+        let reader = CellReader::new(&family("apriltag-36h11")).unwrap();
+        let image = crate::image::decode(SLIVER, &Default::default()).unwrap();
+        // The true quad lies well inside; moved right until its rightmost quiet-zone sample
+        // lies within the image's last pixel, it is scored through the checked samples.
+        let to_image = reader.to_image(&SLIVER_TRUTH).unwrap();
+        let rightmost = (reader.known.iter())
+            .map(|&(p, _)| to_image.apply(p)[0])
+            .fold(f64::MIN, f64::max);
+        let shift = image.width as f64 - 1.5 - rightmost;
+        let at_edge = SLIVER_TRUTH.map(|[x, y]| [x + shift, y]);
+        for roi in [SLIVER_TRUTH, SLIVER_TRACED, at_edge] {
+            let fast = reader.score(&image, &roi).unwrap().score;
+            let defined = score_by_definition(&reader, &image, &roi);
+            assert!((fast - defined).abs() < 1e-9 * defined.abs().max(1.0), "{fast} vs {defined}");
+        }
+        let off_image = SLIVER_TRUTH.map(|[x, y]| [x - 30.0, y]);
+        assert!(reader.score(&image, &off_image).is_none());
     }
 }
