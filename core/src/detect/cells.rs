@@ -242,7 +242,13 @@ impl CellReader {
         ];
         let map = |[u, v]: [f64; 2]| {
             let w = h[6] * u + h[7] * v + h[8];
-            ([(h[0] * u + h[1] * v + h[2]) / w, (h[3] * u + h[4] * v + h[5]) / w], w)
+            (
+                [
+                    (h[0] * u + h[1] * v + h[2]) / w,
+                    (h[3] * u + h[4] * v + h[5]) / w,
+                ],
+                w,
+            )
         };
         // The weight w is affine in (u, v), so positive at the box's corners means positive
         // over the box, whose image is then the convex quad of the corners' images.
@@ -485,14 +491,7 @@ fn interior_sample(pixels: &[u8], stride: usize, x: f32, y: f32) -> f32 {
     let (fx, fy) = (x - x0 as f32, y - y0 as f32);
     let i = y0 * stride + x0;
     let at = |i: usize| pixels[i] as f32;
-    crate::image::mix(
-        at(i),
-        at(i + 1),
-        at(i + stride),
-        at(i + stride + 1),
-        fx,
-        fy,
-    )
+    crate::image::mix(at(i), at(i + 1), at(i + stride), at(i + stride + 1), fx, fy)
 }
 
 fn sample(image: &GrayImage, [x, y]: [f64; 2]) -> Option<f64> {
@@ -710,7 +709,10 @@ pub(super) mod tests {
         for roi in [SLIVER_TRUTH, SLIVER_TRACED, at_edge] {
             let fast = reader.score(&image, &roi).unwrap().score;
             let defined = score_by_definition(&reader, &image, &roi);
-            assert!((fast - defined).abs() < 1e-9 * defined.abs().max(1.0), "{fast} vs {defined}");
+            assert!(
+                (fast - defined).abs() < 1e-9 * defined.abs().max(1.0),
+                "{fast} vs {defined}"
+            );
         }
         let off_image = SLIVER_TRUTH.map(|[x, y]| [x - 30.0, y]);
         assert!(reader.score(&image, &off_image).is_none());

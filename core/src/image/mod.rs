@@ -82,8 +82,25 @@ impl GrayImage {
     }
 
     /// Bilinear sample (see [`bilinear`]), in gray levels 0–255.
+    ///
+    /// [`bilinear`]'s arithmetic with the neighbours' indices in integers and the bytes borrowed
+    /// once: the image searches and the frame fit take millions of samples an image.
     pub fn sample(&self, x: f32, y: f32) -> f32 {
-        bilinear(self.width, self.height, x, y, |i| self.pixels[i] as f32)
+        let (last_x, last_y) = (self.width.saturating_sub(1), self.height.saturating_sub(1));
+        let (x, y) = (x.clamp(0.0, last_x as f32), y.clamp(0.0, last_y as f32));
+        let (x0, y0) = (x as u32, y as u32);
+        let (x1, y1) = ((x0 + 1).min(last_x), (y0 + 1).min(last_y));
+        let pixels: &[u8] = &self.pixels;
+        let stride = self.width as usize;
+        let at = |xx: u32, yy: u32| pixels[yy as usize * stride + xx as usize] as f32;
+        mix(
+            at(x0, y0),
+            at(x1, y0),
+            at(x0, y1),
+            at(x1, y1),
+            x - x0 as f32,
+            y - y0 as f32,
+        )
     }
 }
 
@@ -201,6 +218,27 @@ mod tests {
         assert_eq!(bilinear(3, 2, 1.5, 0.0, at), 15.0);
         assert_eq!(bilinear(3, 2, -4.0, -1.0, at), 0.0);
         assert_eq!(bilinear(3, 2, 9.0, 9.0, at), 50.0);
+    }
+
+    #[test]
+    fn an_image_samples_as_the_generic_bilinear_does_inside_at_the_edges_and_beyond() {
+        let image = GrayImage::from_vec(3, 2, vec![0, 10, 20, 30, 40, 250]);
+        let generic = |x: f32, y: f32| bilinear(3, 2, x, y, |i| image.pixels[i] as f32);
+        for (x, y) in [
+            (1.0, 1.0),
+            (0.5, 0.5),
+            (1.5, 0.0),
+            (1.7, 0.9),
+            (2.0, 1.0),
+            (-4.0, -1.0),
+            (9.0, 9.0),
+            (1.999, 0.999),
+        ] {
+            assert_eq!(image.sample(x, y), generic(x, y), "at ({x}, {y})");
+        }
+        assert_eq!(image.sample(1.5, 0.5), 80.0);
+        let pixel = GrayImage::new(1, 1, 7);
+        assert_eq!(pixel.sample(0.3, 5.0), 7.0);
     }
 
     #[test]
