@@ -153,7 +153,7 @@ pub const DEFAULT_SOURCES: [SourceParams; SOURCES] = [
         needs: Capability::Any,
         selections: 3,
         budget: Some(4),
-        precheck: false,
+        precheck: true,
         retried_rois: 0,
     },
     SourceParams {
@@ -171,7 +171,7 @@ pub const DEFAULT_SOURCES: [SourceParams; SOURCES] = [
         needs: Capability::Any,
         selections: 3,
         budget: Some(4),
-        precheck: false,
+        precheck: true,
         retried_rois: 0,
     },
     SourceParams {
@@ -180,7 +180,7 @@ pub const DEFAULT_SOURCES: [SourceParams; SOURCES] = [
         needs: Capability::Any,
         selections: 3,
         budget: Some(4),
-        precheck: false,
+        precheck: true,
         retried_rois: 0,
     },
     SourceParams {
