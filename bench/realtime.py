@@ -72,6 +72,9 @@ def main():
         groups.append((f"{os.path.basename(folder.rstrip('/'))} ({family})", family, paths, None))
 
     entries_all = []
+    # Every baseline detector lives until os._exit: pupil-apriltags' destructor segfaults now
+    # and then when a second detector replaces the first (realtime.sh's retries were for that).
+    kept_alive = []
     print("| photographs | detector | median ms | min–max ms | ROIs / image | stage-2 passes / image | "
           "reference markers found | markers reported |")
     print("|---|---|---|---|---|---|---|---|")
@@ -86,6 +89,7 @@ def main():
         baselines = [("OpenCV ArUco", opencv_detector(dictionary))]
         if april:
             baselines.insert(0, ("AprilTag 3", apriltag_detector(april)))
+        kept_alive.append(baselines)
         for label, detect in baselines:
             times, found = [], []
             for path in images:
