@@ -18,6 +18,7 @@ pub fn warp_bilinear(
     let m = out_to_src.0;
     let (w, h) = (src.width as i64, src.height as i64);
     let stride = src.width as usize;
+    let p: &[u8] = &src.pixels;
     for v in 0..out_height {
         let vf = v as f64;
         // Homogeneous source coordinates at u = 0, and their step per output pixel.
@@ -27,14 +28,14 @@ pub fn warp_bilinear(
         let row =
             &mut out.pixels[v as usize * out_width as usize..(v as usize + 1) * out_width as usize];
         for px in row.iter_mut() {
-            if z > 0.0 {
-                let (sx, sy) = (x / z, y / z);
-                let (x0, y0) = (sx.floor(), sy.floor());
-                let (ix, iy) = (x0 as i64, y0 as i64);
-                if ix >= 0 && iy >= 0 && ix + 1 < w && iy + 1 < h {
-                    let (fx, fy) = ((sx - x0) as f32, (sy - y0) as f32);
+            let (sx, sy) = (x / z, y / z);
+            // Truncation is the floor where both are ≥ 0 (the others fall outside), and unlike
+            // `floor` it is one instruction on baseline x86-64: every stage-2 pass warps a patch.
+            if z > 0.0 && sx >= 0.0 && sy >= 0.0 {
+                let (ix, iy) = (sx as i64, sy as i64);
+                if ix + 1 < w && iy + 1 < h {
+                    let (fx, fy) = ((sx - ix as f64) as f32, (sy - iy as f64) as f32);
                     let i = iy as usize * stride + ix as usize;
-                    let p = &src.pixels;
                     let v = mix(
                         p[i] as f32,
                         p[i + 1] as f32,
@@ -78,6 +79,10 @@ mod tests {
         // Outside the source: the border value.
         let out = warp_bilinear(&src, &shift(6.0, 0.0), 4, 4, 255);
         assert_eq!(out.get(3, 0), 255);
+        // Less than a pixel left of the source or above it is outside too.
+        let out = warp_bilinear(&src, &shift(-0.5, -0.25), 4, 4, 255);
+        assert_eq!((out.get(0, 0), out.get(0, 2), out.get(2, 0)), (255, 255, 255));
+        assert_ne!(out.get(1, 1), 255);
     }
 
     #[test]
