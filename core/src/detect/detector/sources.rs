@@ -145,7 +145,7 @@ pub const DEFAULT_SOURCES: [SourceParams; SOURCES] = [
         selections: 3,
         budget: None,
         precheck: true,
-        retried_rois: 6,
+        retried_rois: 2,
     },
     SourceParams {
         source: Source::Outline,
