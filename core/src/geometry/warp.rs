@@ -81,7 +81,10 @@ mod tests {
         assert_eq!(out.get(3, 0), 255);
         // Less than a pixel left of the source or above it is outside too.
         let out = warp_bilinear(&src, &shift(-0.5, -0.25), 4, 4, 255);
-        assert_eq!((out.get(0, 0), out.get(0, 2), out.get(2, 0)), (255, 255, 255));
+        assert_eq!(
+            (out.get(0, 0), out.get(0, 2), out.get(2, 0)),
+            (255, 255, 255)
+        );
         assert_ne!(out.get(1, 1), 255);
     }
 
