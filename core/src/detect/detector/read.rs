@@ -42,7 +42,8 @@ impl FamilyReader {
     /// moved, on another or on none, where a right read decodes again; a quad across a row of
     /// markers read as one code reprojects by a large part of a cell. A read from the keypoints
     /// of a first pass that decoded nothing must, with more than half the corrections, fit its
-    /// pose more closely still ([`AcceptParams::max_keypoint_read_rms_pitch`]).
+    /// pose more closely still ([`AcceptParams::max_keypoint_read_rms_pitch`]), and so must any
+    /// read of a code too short to correct ([`AcceptParams::max_short_code_rms_pitch`]).
     pub(super) fn accepts(
         &self,
         m: &Stage2Result,
@@ -54,7 +55,9 @@ impl FamilyReader {
         let fits = |max: f64| self.rms_pitch(m).is_none_or(|rms| rms <= max);
         let uniform = (self.family.codebook().code(m.id))
             .is_some_and(|code| code.windows(2).all(|pair| pair[0] == pair[1]));
+        let short = self.family.codebook().code_len() < params.min_symbols_to_correct;
         (params.read_uniform_codes || !uniform)
+            && (!short || fits(params.max_short_code_rms_pitch))
             && m.corrected_errors <= limit
             && m.corrected_errors <= trust.allowed(limit, roi_score, params.weak_roi_score)
             && (m.corrected_errors <= limit / 2

@@ -232,6 +232,11 @@ pub struct AcceptParams {
     /// correction or two often enough to matter, where codes of 25 bits and more do not
     /// (BENCHMARKS.md, "Every family detecting").
     pub min_symbols_to_correct: usize,
+    /// The largest keypoint reprojection RMS, in cell pitches in the image, of a read of such a
+    /// short code: a quad of clutter that is one of the codes as it stands needs no correction,
+    /// but its keypoints fit no flat marker's pose as a marker's do (BENCHMARKS.md, "Every
+    /// family detecting").
+    pub max_short_code_rms_pitch: f64,
     /// Whether a code whose every symbol is the same is read. Quaternary 6×6's ID 0 (every cell
     /// solid) is a black square with its orientation mark; a dark square of clutter reads as it,
     /// and the network is no surer of the marker's keypoints than of the clutter's, so neither is
@@ -246,6 +251,7 @@ impl Default for AcceptParams {
             max_weak_read_rms_pitch: 0.25,
             max_keypoint_read_rms_pitch: 0.1,
             min_symbols_to_correct: 20,
+            max_short_code_rms_pitch: 0.1,
             read_uniform_codes: false,
         }
     }

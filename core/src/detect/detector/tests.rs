@@ -136,6 +136,39 @@ fn codes_too_short_to_correct_are_read_only_without_corrections() {
     assert!(reader("apriltag-16h5").accepts(&a_read(1), Trust::First, 0.9, &lenient));
 }
 
+/// A read of a code too short to correct stands only where its keypoints fit a flat marker's
+/// pose: a quad of clutter that happens to be one of 4x4_50's codes as it stands is refused;
+/// longer codes are not asked.
+#[test]
+fn a_short_code_read_must_fit_its_pose() {
+    let params = AcceptParams::default();
+    let reader =
+        |name: &str| FamilyReader::shipped(crate::builtin::get(name).unwrap().unwrap()).unwrap();
+    // The 100 px square of `a_read` has a 16.7 px pitch on a 6-cell grid.
+    let posed = |rms_px: f64| Stage2Result {
+        pose: Some(crate::pose::PnpSolution {
+            pose: crate::pose::Pose {
+                rotation: nalgebra::Rotation3::identity(),
+                translation: nalgebra::Vector3::new(0.0, 0.0, 0.5),
+            },
+            rms_px,
+            iterations: 1,
+            ambiguity_ratio: None,
+            covariance: None,
+        }),
+        ..a_read(0)
+    };
+    let short = reader("aruco-4x4_50");
+    assert!(short.accepts(&posed(1.0), Trust::First, 0.9, &params));
+    assert!(!short.accepts(&posed(2.5), Trust::First, 0.9, &params));
+    assert!(reader("apriltag-25h9").accepts(&posed(2.5), Trust::First, 0.9, &params));
+    let lenient = AcceptParams {
+        max_short_code_rms_pitch: 0.2,
+        ..params
+    };
+    assert!(short.accepts(&posed(2.5), Trust::First, 0.9, &lenient));
+}
+
 fn found_at(corners: [[f64; 2]; 4], id: usize, corrections: usize, rms_pitch: f64) -> Found {
     Found {
         family: "apriltag-36h11".into(),
