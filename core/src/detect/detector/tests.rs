@@ -42,13 +42,9 @@ fn a_read(corrected_errors: usize) -> Stage2Result {
     }
 }
 
-#[test]
-fn a_read_from_a_failed_passs_keypoints_needing_many_corrections_must_fit_its_pose() {
-    let family = crate::builtin::get("apriltag-36h11").unwrap().unwrap();
-    let reader = FamilyReader::shipped(family).unwrap();
-    let params = AcceptParams::default();
-    let read = |from_keypoints: bool, rms_px: f64| Stage2Result {
-        from_keypoints,
+/// `read` with a pose half a metre ahead whose keypoints reproject by `rms_px`.
+fn with_pose(read: Stage2Result, rms_px: f64) -> Stage2Result {
+    Stage2Result {
         pose: Some(crate::pose::PnpSolution {
             pose: crate::pose::Pose {
                 rotation: nalgebra::Rotation3::identity(),
@@ -59,7 +55,23 @@ fn a_read_from_a_failed_passs_keypoints_needing_many_corrections_must_fit_its_po
             ambiguity_ratio: None,
             covariance: None,
         }),
-        ..a_read(4)
+        ..read
+    }
+}
+
+#[test]
+fn a_read_from_a_failed_passs_keypoints_needing_many_corrections_must_fit_its_pose() {
+    let family = crate::builtin::get("apriltag-36h11").unwrap().unwrap();
+    let reader = FamilyReader::shipped(family).unwrap();
+    let params = AcceptParams::default();
+    let read = |from_keypoints: bool, rms_px: f64| {
+        with_pose(
+            Stage2Result {
+                from_keypoints,
+                ..a_read(4)
+            },
+            rms_px,
+        )
     };
     assert!(reader.accepts(&read(false, 3.0), Trust::First, 0.9, &params));
     assert!(reader.accepts(&read(true, 0.4), Trust::First, 0.9, &params));
@@ -145,19 +157,7 @@ fn a_short_code_read_must_fit_its_pose() {
     let reader =
         |name: &str| FamilyReader::shipped(crate::builtin::get(name).unwrap().unwrap()).unwrap();
     // The 100 px square of `a_read` has a 16.7 px pitch on a 6-cell grid.
-    let posed = |rms_px: f64| Stage2Result {
-        pose: Some(crate::pose::PnpSolution {
-            pose: crate::pose::Pose {
-                rotation: nalgebra::Rotation3::identity(),
-                translation: nalgebra::Vector3::new(0.0, 0.0, 0.5),
-            },
-            rms_px,
-            iterations: 1,
-            ambiguity_ratio: None,
-            covariance: None,
-        }),
-        ..a_read(0)
-    };
+    let posed = |rms_px: f64| with_pose(a_read(0), rms_px);
     let short = reader("aruco-4x4_50");
     assert!(short.accepts(&posed(1.0), Trust::First, 0.9, &params));
     assert!(!short.accepts(&posed(2.5), Trust::First, 0.9, &params));
