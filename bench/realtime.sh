@@ -13,9 +13,9 @@ T=${TAGSMITH:-target/release/tagsmith}
 shared=${SHARED:-../shared}
 extra=()
 for e in "$@"; do extra+=(--extra "$e"); done
-# To a file first: pupil-apriltags under this venv segfaults writing to a closed pipe, and now
-# and then in a run (2026-12-05: one run in three; none of 6 under -X faulthandler, which would
-# print where), so a crashed run is tried again.
+# To a file first: pupil-apriltags under this venv segfaults writing to a closed pipe, and its
+# detector's destructor did now and then (realtime.py keeps every detector alive since; the
+# faulthandler showed it on 2026-12-07), so a crashed run is still tried again.
 out=$(mktemp)
 for try in 1 2 3; do
   if bench/.venv/bin/python -X faulthandler bench/realtime.py "$shared/realimages" --tagsmith "$T" \
