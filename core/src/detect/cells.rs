@@ -263,7 +263,7 @@ impl CellReader {
         for (&u, &(_, level)) in self.known_unit.iter().zip(&self.known) {
             let (p, _) = map(u);
             let gray = if inside {
-                interior_sample(pixels, stride, p[0] as f32, p[1] as f32) as f64
+                crate::image::bilinear_inside(pixels, stride, p[0] as f32, p[1] as f32) as f64
             } else {
                 sample(image, p)?
             };
@@ -483,17 +483,6 @@ impl CellReader {
 }
 
 /// Bilinear gray level at an image point; `None` outside the image.
-/// [`GrayImage::sample`] where (`x`, `y`) lies in [0, width − 2] × [0, height − 2], so no clamp
-/// or bounds check is needed: the same arithmetic, the same value.
-#[inline]
-fn interior_sample(pixels: &[u8], stride: usize, x: f32, y: f32) -> f32 {
-    let (x0, y0) = (x as usize, y as usize);
-    let (fx, fy) = (x - x0 as f32, y - y0 as f32);
-    let i = y0 * stride + x0;
-    let at = |i: usize| pixels[i] as f32;
-    crate::image::mix(at(i), at(i + 1), at(i + stride), at(i + stride + 1), fx, fy)
-}
-
 fn sample(image: &GrayImage, [x, y]: [f64; 2]) -> Option<f64> {
     let inside =
         x >= 0.0 && y >= 0.0 && x <= (image.width - 1) as f64 && y <= (image.height - 1) as f64;

@@ -83,24 +83,11 @@ impl GrayImage {
 
     /// Bilinear sample (see [`bilinear`]), in gray levels 0–255.
     ///
-    /// [`bilinear`]'s arithmetic with the neighbours' indices in integers and the bytes borrowed
-    /// once: the image searches and the frame fit take millions of samples an image.
+    /// The bytes are borrowed once, not through [`Pixels`] at each of the four reads: the image
+    /// searches and the frame fit take millions of samples an image.
     pub fn sample(&self, x: f32, y: f32) -> f32 {
-        let (last_x, last_y) = (self.width.saturating_sub(1), self.height.saturating_sub(1));
-        let (x, y) = (x.clamp(0.0, last_x as f32), y.clamp(0.0, last_y as f32));
-        let (x0, y0) = (x as u32, y as u32);
-        let (x1, y1) = ((x0 + 1).min(last_x), (y0 + 1).min(last_y));
         let pixels: &[u8] = &self.pixels;
-        let stride = self.width as usize;
-        let at = |xx: u32, yy: u32| pixels[yy as usize * stride + xx as usize] as f32;
-        mix(
-            at(x0, y0),
-            at(x1, y0),
-            at(x0, y1),
-            at(x1, y1),
-            x - x0 as f32,
-            y - y0 as f32,
-        )
+        bilinear(self.width, self.height, x, y, |i| pixels[i] as f32)
     }
 }
 
@@ -151,23 +138,40 @@ pub fn mix(
 /// clamped first), so a sample never reads out of bounds.
 #[inline]
 pub fn bilinear(width: u32, height: u32, x: f32, y: f32, at: impl Fn(usize) -> f32) -> f32 {
-    let (w, h) = (width as f32 - 1.0, height as f32 - 1.0);
-    let (x, y) = (x.clamp(0.0, w), y.clamp(0.0, h));
+    let (last_x, last_y) = (width.saturating_sub(1), height.saturating_sub(1));
+    let (x, y) = (x.clamp(0.0, last_x as f32), y.clamp(0.0, last_y as f32));
     // Truncation is the floor here, as both are clamped to ≥ 0, and it compiles to one
-    // instruction where `floor` is a libm call on baseline x86-64 (no SSE4.1): this runs for
-    // every sample of every frame fit.
-    let (x0, y0) = ((x as u32) as f32, (y as u32) as f32);
-    let (fx, fy) = (x - x0, y - y0);
-    let (x1, y1) = ((x0 + 1.0).min(w), (y0 + 1.0).min(h));
+    // instruction where `floor` is a libm call on baseline x86-64 (no SSE4.1); the neighbours'
+    // indices stay integers: this runs for every sample of every frame fit.
+    let (x0, y0) = (x as u32, y as u32);
+    let (x1, y1) = ((x0 + 1).min(last_x), (y0 + 1).min(last_y));
     let stride = width as usize;
-    let idx = |xx: f32, yy: f32| yy as usize * stride + xx as usize;
+    let idx = |xx: u32, yy: u32| yy as usize * stride + xx as usize;
     mix(
         at(idx(x0, y0)),
         at(idx(x1, y0)),
         at(idx(x0, y1)),
         at(idx(x1, y1)),
-        fx,
-        fy,
+        x - x0 as f32,
+        y - y0 as f32,
+    )
+}
+
+/// [`bilinear`] over a gray image's bytes (`stride` a row) where (`x`, `y`) lies in
+/// [0, width − 2] × [0, height − 2]: no clamp, no neighbour at the edge, the same value. For
+/// callers that check a whole region against the image once (the frame fit).
+#[inline]
+pub fn bilinear_inside(pixels: &[u8], stride: usize, x: f32, y: f32) -> f32 {
+    let (x0, y0) = (x as usize, y as usize);
+    let i = y0 * stride + x0;
+    let at = |i: usize| pixels[i] as f32;
+    mix(
+        at(i),
+        at(i + 1),
+        at(i + stride),
+        at(i + stride + 1),
+        x - x0 as f32,
+        y - y0 as f32,
     )
 }
 
@@ -237,6 +241,10 @@ mod tests {
             assert_eq!(image.sample(x, y), generic(x, y), "at ({x}, {y})");
         }
         assert_eq!(image.sample(1.5, 0.5), 80.0);
+        // Inside [0, width − 2] × [0, height − 2] the unchecked sampler agrees.
+        for (x, y) in [(0.0, 0.0), (0.5, 0.5), (1.0, 0.0), (0.25, 0.75)] {
+            assert_eq!(bilinear_inside(&image.pixels, 3, x, y), image.sample(x, y));
+        }
         let pixel = GrayImage::new(1, 1, 7);
         assert_eq!(pixel.sample(0.3, 5.0), 7.0);
     }

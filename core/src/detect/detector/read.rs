@@ -55,9 +55,8 @@ impl FamilyReader {
         let fits = |max: f64| self.rms_pitch(m).is_none_or(|rms| rms <= max);
         let uniform = (self.family.codebook().code(m.id))
             .is_some_and(|code| code.windows(2).all(|pair| pair[0] == pair[1]));
-        let short = self.family.codebook().code_len() < params.min_symbols_to_correct;
         (params.read_uniform_codes || !uniform)
-            && (!short || fits(params.max_short_code_rms_pitch))
+            && (!self.too_short_to_correct(params) || fits(params.max_short_code_rms_pitch))
             && m.corrected_errors <= limit
             && m.corrected_errors <= trust.allowed(limit, roi_score, params.weak_roi_score)
             && (m.corrected_errors <= limit / 2
@@ -69,12 +68,17 @@ impl FamilyReader {
     /// The most corrected symbols a read of the family may need: the codebook's limit, or none
     /// for a code too short to correct ([`AcceptParams::min_symbols_to_correct`]).
     pub(super) fn correction_limit(&self, params: &AcceptParams) -> usize {
-        let codebook = self.family.codebook();
-        if codebook.code_len() < params.min_symbols_to_correct {
+        if self.too_short_to_correct(params) {
             0
         } else {
-            codebook.max_correction()
+            self.family.codebook().max_correction()
         }
+    }
+
+    /// Whether the family's codes are read only as they are
+    /// ([`AcceptParams::min_symbols_to_correct`]).
+    fn too_short_to_correct(&self, params: &AcceptParams) -> bool {
+        self.family.codebook().code_len() < params.min_symbols_to_correct
     }
 
     /// The read's keypoint reprojection RMS from its pose, in cell pitches in the image (`None`
