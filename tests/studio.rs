@@ -739,7 +739,7 @@ fn the_detect_panel_lists_what_the_cli_detects_on_a_sample() {
         .iter()
         .map(|m| {
             let d = &m.detection;
-            (d.family.clone().unwrap(), d.id, d.corners)
+            (d.family.clone().unwrap(), d.id, d.corners.0)
         })
         .collect();
     assert!(!listed.is_empty(), "the sample shows six ArUco markers");
@@ -747,8 +747,7 @@ fn the_detect_panel_lists_what_the_cli_detects_on_a_sample() {
     let result = h.state().detect.result.as_ref().unwrap();
     for m in &result.markers {
         let [origin, ..] = m.axes.expect("every marker of the sample has a pose");
-        let centre =
-            tagsmith::detect::stage1::targets::diagonal_crossing(&m.detection.corners).unwrap();
+        let centre = m.detection.corners.diagonal_crossing().unwrap();
         let off = (origin[0] - centre[0]).hypot(origin[1] - centre[1]);
         assert!(off < 1.5, "axes {off:.2} px from the marker's centre");
     }

@@ -78,18 +78,18 @@ fn hostile_quads_are_refused_or_read_never_hang() {
     let image = GrayImage::new(320, 240, 128);
     let mut refused = 0;
     arbtest::arbtest(|u| {
-        let mut quad = [[0.0; 2]; 4];
+        let mut quad = tagsmith::geometry::Quad::default();
         for p in quad.iter_mut() {
             *p = [wild_coordinate(u)?, wild_coordinate(u)?];
         }
         let clock = Instant::now();
-        if tagsmith::geometry::check_quad(&quad).is_err() {
+        if quad.check().is_err() {
             refused += 1;
         } else {
             let _ = stage2.detect(&image, &quad, &ReadOptions::default(), None);
         }
         let homography = tagsmith::geometry::homography::Homography::from_points(
-            &quad,
+            &quad[..],
             &[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]],
         );
         let _ = homography;

@@ -15,6 +15,7 @@ use tagsmith::detect::{BenchDetector, DetectionsFile, Detector, Found, ImageDete
 use tagsmith::detect::{TrackParams, Tracker};
 use tagsmith::family::Family;
 use tagsmith::geometry::Camera;
+use tagsmith::geometry::Quad;
 use tagsmith::image::GrayImage;
 use tagsmith_studio::settings::DetectorSettings;
 
@@ -600,7 +601,7 @@ impl DetectSetArgs {
     }
 }
 
-fn parse_roi(text: &str) -> Result<[[f64; 2]; 4]> {
+fn parse_roi(text: &str) -> Result<Quad> {
     let values: Vec<f64> = text
         .split(',')
         .map(|v| v.trim().parse::<f64>())
@@ -611,8 +612,9 @@ fn parse_roi(text: &str) -> Result<[[f64; 2]; 4]> {
             "--roi {text:?}: expected 8 finite numbers x1,y1,x2,y2,x3,y3,x4,y4"
         ));
     }
-    let quad = std::array::from_fn(|i| [values[2 * i], values[2 * i + 1]]);
-    tagsmith::geometry::check_quad(&quad).map_err(|e| bad_input!("--roi {text:?}: {e}"))?;
+    let quad = Quad(std::array::from_fn(|i| [values[2 * i], values[2 * i + 1]]));
+    quad.check()
+        .map_err(|e| bad_input!("--roi {text:?}: {e}"))?;
     Ok(quad)
 }
 

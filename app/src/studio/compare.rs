@@ -17,6 +17,7 @@ use tagsmith::eval::designs::{detector_for, DesignReport, DesignRun, WorstCase};
 use tagsmith::eval::plot::COLOURS as PALETTE;
 use tagsmith::eval::scenario::{Condition, Scenario, Sweep};
 use tagsmith::family::Family;
+use tagsmith::geometry::Quad;
 
 /// At most this many designs at once: the plots stay readable.
 pub const MAX_DESIGNS: usize = 4;
@@ -696,7 +697,7 @@ fn results(c: &mut CompareState, ui: &mut egui::Ui, ctx: &egui::Context) -> Opti
                 let at = response.rect.min;
                 let to_screen =
                     |p: [f64; 2]| at + egui::vec2(p[0] as f32 * scale, p[1] as f32 * scale);
-                let outline = |q: &[[f64; 2]; 4], colour: egui::Color32| {
+                let outline = |q: &Quad, colour: egui::Color32| {
                     let mut points: Vec<egui::Pos2> = q.iter().map(|&p| to_screen(p)).collect();
                     points.push(points[0]);
                     egui::Shape::line(points, egui::Stroke::new(1.5, colour))

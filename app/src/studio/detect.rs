@@ -30,6 +30,7 @@ use tagsmith::detect::stage2::{shipped_families, shipped_model_for, DEFAULT_FAMI
 use tagsmith::detect::{
     BenchDetector, DetectionsFile, Detector, DetectorOptions, Found, ImageDetections, Timings,
 };
+use tagsmith::geometry::Quad;
 use tagsmith::image::GrayImage;
 
 /// An image to detect on.
@@ -817,7 +818,7 @@ fn draw_overlays(ui: &egui::Ui, rect: Rect, scale: f32, markers: &[Shown]) {
             rect.min.y + (p[1] as f32 + 0.5) * scale,
         )
     };
-    let outline = |q: &[[f64; 2]; 4], colour: Color32| {
+    let outline = |q: &Quad, colour: Color32| {
         let points: Vec<Pos2> = q.iter().map(|&p| at(p)).collect();
         painter.add(egui::Shape::closed_line(points, Stroke::new(1.5, colour)));
     };

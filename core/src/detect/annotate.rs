@@ -1,6 +1,7 @@
 //! An annotated copy of an image: the input ROI (yellow), the marker's outline from its keypoints
 //! (green, the canonical first corner ringed in red) and every keypoint coloured by category.
 
+use crate::geometry::Quad;
 use crate::image::GrayImage;
 use crate::render::raster::encode_png;
 use tiny_skia::{Color, FillRule, Paint, PathBuilder, Pixmap, Stroke, Transform};
@@ -18,16 +19,16 @@ const PALETTE: [(u8, u8, u8); 6] = [
 /// What is drawn for one marker: the ROI it was read from, its outline when decoded, its
 /// keypoints as (x, y, category).
 pub struct Overlay<'a> {
-    pub roi: &'a [[f64; 2]; 4],
-    pub corners: Option<&'a [[f64; 2]; 4]>,
+    pub roi: &'a Quad,
+    pub corners: Option<&'a Quad>,
     pub keypoints: Vec<(f64, f64, usize)>,
 }
 
 /// PNG bytes of `image` with the overlays of one ROI; `keypoints` are (x, y, category).
 pub fn annotate(
     image: &GrayImage,
-    roi: &[[f64; 2]; 4],
-    corners: Option<&[[f64; 2]; 4]>,
+    roi: &Quad,
+    corners: Option<&Quad>,
     keypoints: &[(f64, f64, usize)],
 ) -> Result<Vec<u8>, String> {
     annotate_all(
@@ -57,7 +58,7 @@ pub fn annotate_all(image: &GrayImage, overlays: &[Overlay]) -> Result<Vec<u8>, 
         width: 1.5 * scale,
         ..Stroke::default()
     };
-    let polygon = |pts: &[[f64; 2]; 4]| {
+    let polygon = |pts: &Quad| {
         let mut pb = PathBuilder::new();
         pb.move_to(pts[0][0] as f32, pts[0][1] as f32);
         for p in &pts[1..] {

@@ -9,6 +9,7 @@
 
 use crate::family::{decode, Assignment, Decoded, Family};
 use crate::geometry::Homography;
+use crate::geometry::Quad;
 use crate::image::GrayImage;
 use crate::render::readback::Reader;
 
@@ -25,7 +26,7 @@ pub struct CellReader {
     /// The known points in unit-square coordinates, and the corners of their bounding box
     /// there: a score maps each point once, and checks the box against the image once.
     known_unit: Vec<[f64; 2]>,
-    known_box: [[f64; 2]; 4],
+    known_box: Quad,
     /// The known levels' mean and scatter (sum of squared deviations): fixed per family, so
     /// a score accumulates only the gray levels' sums.
     level_mean: f64,
@@ -37,7 +38,7 @@ pub struct CellReader {
 /// Where the known points fit their levels best, and how well ([`CellReader::fit`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Fitted {
-    roi: [[f64; 2]; 4],
+    roi: Quad,
     /// The fitted black-to-white step over the residuals' spread.
     score: f64,
     /// Level → gray: `gray = gain · level + offset`.
@@ -57,8 +58,8 @@ struct ScoredQuads(std::collections::HashMap<[u64; 8], Option<Fitted>>);
 impl ScoredQuads {
     fn score(
         &mut self,
-        quad: &[[f64; 2]; 4],
-        score: impl FnOnce(&[[f64; 2]; 4]) -> Option<Fitted>,
+        quad: &Quad,
+        score: impl FnOnce(&Quad) -> Option<Fitted>,
     ) -> Option<Fitted> {
         let key: [u64; 8] = std::array::from_fn(|i| quad[i / 2][i % 2].to_bits());
         *self.0.entry(key).or_insert_with(|| score(quad))
@@ -71,7 +72,7 @@ pub enum CellOutcome {
     Read(CellRead),
     /// The frame fitted (these corners), but the code did not decode from the cells: the
     /// network may read it from there (a sliver's cells are a pixel wide).
-    Framed([[f64; 2]; 4]),
+    Framed(Quad),
     /// No frame: clutter, or too far from a marker.
     Unfit,
 }
@@ -88,7 +89,7 @@ pub struct CellRead {
     /// categories' levels, 1 on the chosen one's (in the same order).
     pub margins: Vec<f64>,
     /// The fitted ROI (ROI points 0–3 in the image).
-    pub roi: [[f64; 2]; 4],
+    pub roi: Quad,
     /// How well the known cells and the quiet zone fit their levels there (the frame fit's
     /// score; a read needs at least 3).
     pub fit: f64,
@@ -204,7 +205,7 @@ impl CellReader {
             known,
             to_unit,
             known_unit,
-            known_box: [lo, [hi[0], lo[1]], hi, [lo[0], hi[1]]],
+            known_box: Quad([lo, [hi[0], lo[1]], hi, [lo[0], hi[1]]]),
             level_mean,
             level_scatter,
             level_range,
@@ -212,7 +213,7 @@ impl CellReader {
     }
 
     /// Marker units → the image, for ROI points 0–3 at `roi`.
-    fn to_image(&self, roi: &[[f64; 2]; 4]) -> Option<Homography> {
+    fn to_image(&self, roi: &Quad) -> Option<Homography> {
         Some(Homography(square_to_quad(roi)? * self.to_unit.0))
     }
 
@@ -223,7 +224,7 @@ impl CellReader {
     /// This runs for every quad of every frame fit (thousands an image), so it maps points
     /// from the unit square and sums in one pass; where the known points' box lies inside the
     /// image, no point needs its own bounds check.
-    fn score(&self, image: &GrayImage, roi: &[[f64; 2]; 4]) -> Option<Fitted> {
+    fn score(&self, image: &GrayImage, roi: &Quad) -> Option<Fitted> {
         let n = self.known.len() as f64;
         if self.level_scatter < 1e-9 * n {
             return None;
@@ -288,7 +289,7 @@ impl CellReader {
     /// best (coordinate ascent, 2 px steps down to a quarter pixel). A steep sliver's cells are
     /// a pixel or two wide, and a quad traced or grouped a few pixels off samples its
     /// neighbours; the frame, which is known whatever the code, pins it down.
-    fn fit(&self, image: &GrayImage, roi: &[[f64; 2]; 4]) -> Option<Fitted> {
+    fn fit(&self, image: &GrayImage, roi: &Quad) -> Option<Fitted> {
         let mut scored = ScoredQuads::default();
         let by_corners = self.ascend(image, roi, CORNER_MOVES, &mut scored)?;
         if by_corners.score >= MIN_FIT || by_corners.score < SIDE_MOVES_FROM {
@@ -314,7 +315,7 @@ impl CellReader {
     fn ascend(
         &self,
         image: &GrayImage,
-        roi: &[[f64; 2]; 4],
+        roi: &Quad,
         moves: &[&[usize]],
         scored: &mut ScoredQuads,
     ) -> Option<Fitted> {
@@ -368,7 +369,7 @@ impl CellReader {
         &self,
         family: &Family,
         image: &GrayImage,
-        roi: &[[f64; 2]; 4],
+        roi: &Quad,
         max_errors: usize,
     ) -> Option<CellRead> {
         match self.read_or_frame(family, image, roi, max_errors) {
@@ -382,7 +383,7 @@ impl CellReader {
         &self,
         family: &Family,
         image: &GrayImage,
-        roi: &[[f64; 2]; 4],
+        roi: &Quad,
         max_errors: usize,
     ) -> CellOutcome {
         self.read_fitted(family, image, self.frame(image, roi).as_ref(), max_errors)
@@ -390,7 +391,7 @@ impl CellReader {
 
     /// The frame fitted from `roi`, where it fits well enough to read cells from; the part of
     /// a read that readers of one frame ([`CellReader::same_frame`]) share.
-    pub fn frame(&self, image: &GrayImage, roi: &[[f64; 2]; 4]) -> Option<Fitted> {
+    pub fn frame(&self, image: &GrayImage, roi: &Quad) -> Option<Fitted> {
         self.fit(image, roi).filter(|f| f.score >= MIN_FIT)
     }
 
@@ -492,8 +493,8 @@ fn sample(image: &GrayImage, [x, y]: [f64; 2]) -> Option<f64> {
 /// The homography taking the unit square's corners (0,0), (1,0), (1,1), (0,1) to `quad`'s, in
 /// closed form (Heckbert 1989): the fit evaluates hundreds of quads per ROI, and a DLT's SVD
 /// for each cost more than the sampling. `None` for a degenerate quad.
-pub(super) fn square_to_quad(quad: &[[f64; 2]; 4]) -> Option<nalgebra::Matrix3<f64>> {
-    let [[x0, y0], [x1, y1], [x2, y2], [x3, y3]] = *quad;
+pub(super) fn square_to_quad(quad: &Quad) -> Option<nalgebra::Matrix3<f64>> {
+    let [[x0, y0], [x1, y1], [x2, y2], [x3, y3]] = quad.0;
     let (dx1, dx2, dx3) = (x1 - x2, x3 - x2, x0 - x1 + x2 - x3);
     let (dy1, dy2, dy3) = (y1 - y2, y3 - y2, y0 - y1 + y2 - y3);
     let den = dx1 * dy2 - dx2 * dy1;
@@ -544,10 +545,10 @@ pub(super) mod tests {
     /// apriltag-36h11 --seed 13`, image 76, cut at x 690–790, y 200–260), and the quad traced
     /// around it, 1–2 px off at every corner: stage 2 reads nothing from that quad.
     pub(in crate::detect) const SLIVER: &[u8] = include_bytes!("testdata/sliver-80cm-60deg.png");
-    pub(in crate::detect) const SLIVER_TRUTH: [[f64; 2]; 4] =
-        [[31.5, 22.5], [75.7, 27.9], [65.6, 35.4], [19.1, 29.5]];
-    pub(in crate::detect) const SLIVER_TRACED: [[f64; 2]; 4] =
-        [[31.8, 21.8], [73.8, 29.5], [67.7, 33.6], [18.8, 30.1]];
+    pub(in crate::detect) const SLIVER_TRUTH: Quad =
+        Quad([[31.5, 22.5], [75.7, 27.9], [65.6, 35.4], [19.1, 29.5]]);
+    pub(in crate::detect) const SLIVER_TRACED: Quad =
+        Quad([[31.8, 21.8], [73.8, 29.5], [67.7, 33.6], [18.8, 30.1]]);
 
     #[test]
     fn a_sliver_traced_a_pixel_or_two_off_is_fitted_to_its_frame_and_read() {
@@ -565,7 +566,7 @@ pub(super) mod tests {
         assert_eq!(read.decoded.id, 111);
         assert!(read.decoded.corrected_errors <= 1, "{read:?}");
         // Within a quarter of a cell along the marker's long sides (cells 4–5 px long there).
-        for (got, truth) in read.roi.iter().zip(SLIVER_TRUTH) {
+        for (got, truth) in read.roi.iter().zip(SLIVER_TRUTH.0) {
             let off = (got[0] - truth[0]).hypot(got[1] - truth[1]);
             assert!(off < 1.25, "{:?} vs {SLIVER_TRUTH:?}", read.roi);
         }
@@ -576,18 +577,18 @@ pub(super) mod tests {
     /// traced around it, 2.4 px off along its length.
     pub(in crate::detect) const FLAT_SLIVER: &[u8] =
         include_bytes!("testdata/sliver-70cm-70deg.png");
-    pub(in crate::detect) const FLAT_SLIVER_TRUTH: [[f64; 2]; 4] = [
+    pub(in crate::detect) const FLAT_SLIVER_TRUTH: Quad = Quad([
         [27.10, 27.94],
         [78.68, 29.27],
         [85.02, 37.44],
         [29.67, 35.92],
-    ];
-    pub(in crate::detect) const FLAT_SLIVER_TRACED: [[f64; 2]; 4] = [
+    ]);
+    pub(in crate::detect) const FLAT_SLIVER_TRACED: Quad = Quad([
         [26.60, 28.68],
         [78.41, 29.69],
         [83.64, 35.42],
         [30.58, 35.90],
-    ];
+    ]);
 
     #[test]
     fn the_fit_scores_each_quad_it_tries_once() {
@@ -596,7 +597,7 @@ pub(super) mod tests {
         let reader = CellReader::new(&family).unwrap();
         let mut scored = ScoredQuads::default();
         let calls = std::cell::Cell::new(0);
-        let mut score = |quad: &[[f64; 2]; 4]| {
+        let mut score = |quad: &Quad| {
             scored.score(quad, |q| {
                 calls.set(calls.get() + 1);
                 reader.score(&image, q)
@@ -634,7 +635,7 @@ pub(super) mod tests {
             .expect("read");
         assert_eq!(read.decoded.id, 328);
         assert!(read.decoded.corrected_errors <= 1, "{read:?}");
-        for (got, truth) in read.roi.iter().zip(FLAT_SLIVER_TRUTH) {
+        for (got, truth) in read.roi.iter().zip(FLAT_SLIVER_TRUTH.0) {
             let off = (got[0] - truth[0]).hypot(got[1] - truth[1]);
             assert!(off < 2.0, "{:?} vs {FLAT_SLIVER_TRUTH:?}", read.roi);
         }
@@ -653,18 +654,18 @@ pub(super) mod tests {
     fn the_closed_form_square_to_quad_agrees_with_the_dlt() {
         let quad = [[10.0, 20.0], [50.0, 25.0], [45.0, 70.0], [5.0, 60.0]];
         let unit = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
-        let closed = Homography(square_to_quad(&quad).unwrap());
+        let closed = Homography(square_to_quad(&Quad(quad)).unwrap());
         let dlt = Homography::from_points(&unit, &quad).unwrap();
         for p in [[0.0, 0.0], [1.0, 1.0], [0.3, 0.8], [0.5, 0.5]] {
             let (a, b) = (closed.apply(p), dlt.apply(p));
             assert!((a[0] - b[0]).hypot(a[1] - b[1]) < 1e-9, "{a:?} vs {b:?}");
         }
-        assert!(square_to_quad(&[[0.0, 0.0]; 4]).is_none());
+        assert!(square_to_quad(&Quad([[0.0, 0.0]; 4])).is_none());
     }
 
     /// The score by its definition: each known point mapped through the ROI's homography and
     /// sampled with bounds checks, the line fitted in two passes, the residuals summed.
-    fn score_by_definition(reader: &CellReader, image: &GrayImage, roi: &[[f64; 2]; 4]) -> f64 {
+    fn score_by_definition(reader: &CellReader, image: &GrayImage, roi: &Quad) -> f64 {
         let to_image = reader.to_image(roi).unwrap();
         let pairs: Vec<(f64, f64)> = (reader.known.iter())
             .map(|&(p, level)| (level, sample(image, to_image.apply(p)).unwrap()))

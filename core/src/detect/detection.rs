@@ -1,6 +1,7 @@
 //! What a detector reports, and the interface through which the evaluation harness runs one.
 //! The detections file (`eval`'s documented JSON format) is [`DetectionsFile`].
 
+use crate::geometry::Quad;
 use crate::image::GrayImage;
 use crate::pose::PoseJson;
 use serde::{Deserialize, Serialize};
@@ -11,7 +12,7 @@ use serde::{Deserialize, Serialize};
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Detection {
     pub id: usize,
-    pub corners: [[f64; 2]; 4],
+    pub corners: Quad,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pose: Option<PoseJson>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -24,7 +25,7 @@ pub struct Detection {
 
 impl Detection {
     /// A detection with only what every detector reports.
-    pub fn plain(id: usize, corners: [[f64; 2]; 4], pose: Option<PoseJson>) -> Self {
+    pub fn plain(id: usize, corners: Quad, pose: Option<PoseJson>) -> Self {
         Self {
             id,
             corners,

@@ -12,6 +12,7 @@
 use super::cells::square_to_quad;
 use crate::family::Family;
 use crate::geometry::Homography;
+use crate::geometry::Quad;
 use crate::image::GrayImage;
 use crate::render::readback::Reader;
 use crate::render::template::{rectified_template, template_corners};
@@ -133,7 +134,7 @@ impl QuadSample {
     /// The samples of the quad `corners` (ROI points 0–3) in `image`; `None` for a degenerate
     /// quad or one whose surroundings reach past its horizon (a view so steep that the grid
     /// would fold back).
-    pub fn of(image: &GrayImage, corners: &[[f64; 2]; 4]) -> Option<Self> {
+    pub fn of(image: &GrayImage, corners: &Quad) -> Option<Self> {
         let to_image = Homography(square_to_quad(corners)?);
         let n = 2 * OUTSIDE_RINGS + (1.0 / STEP).round() as usize;
         let unit = |i: usize| (i as f64 - OUTSIDE_RINGS as f64) * STEP;
@@ -198,11 +199,11 @@ mod tests {
         crate::builtin::get(name).map(Result::unwrap)
     }
 
-    fn square(x: f64, y: f64, side: f64) -> [[f64; 2]; 4] {
-        [[x, y], [x + side, y], [x + side, y + side], [x, y + side]]
+    fn square(x: f64, y: f64, side: f64) -> Quad {
+        Quad([[x, y], [x + side, y], [x + side, y + side], [x, y + side]])
     }
 
-    fn fill(image: &mut GrayImage, corners: &[[f64; 2]; 4], gray: u8) {
+    fn fill(image: &mut GrayImage, corners: &Quad, gray: u8) {
         let [x0, y0] = corners[0];
         let [x1, y1] = corners[2];
         for y in y0 as u32..y1 as u32 {
@@ -212,7 +213,7 @@ mod tests {
         }
     }
 
-    fn template_roi(family: &Family) -> [[f64; 2]; 4] {
+    fn template_roi(family: &Family) -> Quad {
         template_corners(TEMPLATE_PX, family.spec().roi.margin).map(|[x, y]| [x - 0.5, y - 0.5])
     }
 

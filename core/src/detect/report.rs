@@ -4,6 +4,7 @@
 use super::refine::RefineReport;
 use super::DetectedKeypoint;
 use crate::geometry::PoseJson;
+use crate::geometry::Quad;
 use crate::pose::PoseUncertainty;
 use serde::{Deserialize, Serialize};
 
@@ -30,7 +31,7 @@ pub struct DecodedMarker {
     #[serde(default)]
     pub from_keypoints: bool,
     /// The family's ROI points in the image, canonical order.
-    pub corners: [[f64; 2]; 4],
+    pub corners: Quad,
     pub missing_keypoints: usize,
     pub keypoints: Vec<DetectedKeypoint>,
     /// The alignment against the family's rendering: whether it replaced stage 2's keypoints,

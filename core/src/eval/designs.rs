@@ -14,7 +14,8 @@ use super::score::{judge, row, stats, Outcome, Stats};
 use super::set::Group;
 use crate::detect::BenchDetector;
 use crate::family::Family;
-use crate::geometry::{bounding_box, Camera};
+use crate::geometry::Camera;
+use crate::geometry::Quad;
 use crate::image::GrayImage;
 use crate::synth::{synthesize, SynthError};
 use rayon::prelude::*;
@@ -31,8 +32,8 @@ pub struct WorstCase {
     pub group: Group,
     /// The scene around the marker, and the corners in its pixels.
     pub crop: GrayImage,
-    pub truth: [[f64; 2]; 4],
-    pub read: Option<[[f64; 2]; 4]>,
+    pub truth: Quad,
+    pub read: Option<Quad>,
     /// Rotation error of the read, degrees, when it has a pose.
     pub rotation_deg: Option<f64>,
 }
@@ -181,9 +182,9 @@ impl DesignRun {
             if count >= WORST_KEPT && badness <= least {
                 continue;
             }
-            let truth_corners = [truth.roi[0], truth.roi[1], truth.roi[2], truth.roi[3]];
+            let truth_corners = Quad([truth.roi[0], truth.roi[1], truth.roi[2], truth.roi[3]]);
             let (crop, origin) = crop_around(&sample.image, &truth_corners);
-            let shift = |q: [[f64; 2]; 4]| q.map(|p| [p[0] - origin[0], p[1] - origin[1]]);
+            let shift = |q: Quad| q.map(|p| [p[0] - origin[0], p[1] - origin[1]]);
             if count >= WORST_KEPT {
                 let (at, _) = (self.worst.iter().enumerate())
                     .filter(|(_, w)| w.family == family)
@@ -473,8 +474,8 @@ fn capitalised(s: &str) -> String {
 
 /// The scene around a marker (its box grown by half its size on each side), and where the cut
 /// starts in the scene.
-fn crop_around(image: &GrayImage, corners: &[[f64; 2]; 4]) -> (GrayImage, [f64; 2]) {
-    let b = bounding_box(corners);
+fn crop_around(image: &GrayImage, corners: &Quad) -> (GrayImage, [f64; 2]) {
+    let b = corners.bounding_box();
     let margin = 0.5 * (b[2] - b[0]).max(b[3] - b[1]).max(8.0);
     let clamp = |v: f64, hi: u32| v.clamp(0.0, hi as f64) as u32;
     let (x0, y0) = (

@@ -9,6 +9,7 @@ use super::EvalError;
 use crate::detect::{Detection, DetectionsFile};
 use crate::family::Family;
 use crate::geometry::bounding_box;
+use crate::geometry::Quad;
 use crate::pose::{marker_plane_points, solve_planar, Pose};
 use crate::synth::MarkerTruth;
 use nalgebra::{Matrix3, Rotation3, Vector3};
@@ -141,7 +142,7 @@ pub(super) struct MarkerRead {
     pub(super) flipped: bool,
     pub(super) pose: Option<Pose>,
     /// Where the detector put the marker's corners.
-    pub(super) corners: [[f64; 2]; 4],
+    pub(super) corners: Quad,
 }
 
 fn iou(a: [f64; 4], b: [f64; 4]) -> f64 {
@@ -172,7 +173,7 @@ pub(super) fn judge(
         if !d.corners.iter().flatten().all(|v| v.is_finite()) {
             continue;
         }
-        let boxed = bounding_box(&d.corners);
+        let boxed = d.corners.bounding_box();
         let hit = truth.iter().enumerate().find(|(i, t)| {
             read[*i].is_none() && t.id == d.id && iou(boxed, bounding_box(&t.roi[..4])) >= 0.5
         });
@@ -180,7 +181,7 @@ pub(super) fn judge(
         let detected = d.pose.as_ref().map(Pose::from).or_else(|| {
             let f = family?;
             let object = marker_plane_points(f, side_m, &f.roi_points()[..4]);
-            solve_planar(camera, &object, &d.corners)
+            solve_planar(camera, &object, &d.corners[..])
                 .ok()
                 .map(|s| s.pose)
         });

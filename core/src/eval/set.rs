@@ -7,7 +7,7 @@
 use super::EvalError;
 use crate::detect::{BenchDetector, Detection, DetectionsFile, ImageDetections};
 use crate::family::Family;
-use crate::geometry::Camera;
+use crate::geometry::{Camera, Quad};
 use crate::synth::augment::AugmentRanges;
 use crate::synth::{image_seed, synthesize, Mode, SynthConfig, Truth};
 use rayon::prelude::*;
@@ -294,7 +294,7 @@ fn render_set(
 /// Reads `dir/set.json` and checks what scoring relies on: a positive marker side, a camera that
 /// projects, each image listed once (under any spelling of its path), every image path inside the
 /// set folder (relative, never climbing out with `..`: commands read the files it names), and each
-/// true ROI an outline geometry can work with ([`crate::geometry::check_quad_with_min_area`]; a
+/// true ROI an outline geometry can work with ([`crate::geometry::Quad::check_with_min_area`]; a
 /// far marker may cover under a pixel, so no least area). `set.json` is read as a regular file of
 /// at most [`crate::io::MAX_TEXT_BYTES`].
 pub fn load(dir: &Path) -> Result<BenchmarkSet, EvalError> {
@@ -347,7 +347,7 @@ pub fn load(dir: &Path) -> Result<BenchmarkSet, EvalError> {
                     ),
                 ));
             };
-            if let Err(e) = crate::geometry::check_quad_with_min_area(quad, 0.0) {
+            if let Err(e) = crate::geometry::Quad(*quad).check_with_min_area(0.0) {
                 return Err(bad(&field, format!("{}: {e}", img.file)));
             }
         }
@@ -430,7 +430,7 @@ impl BenchImage {
             .map(|m| {
                 Detection::plain(
                     m.id,
-                    [m.roi[0], m.roi[1], m.roi[2], m.roi[3]],
+                    Quad([m.roi[0], m.roi[1], m.roi[2], m.roi[3]]),
                     m.pose.as_ref().filter(|_| with_pose).map(|p| p.pose),
                 )
             })

@@ -5,6 +5,7 @@ use crate::detect::refine::RefineReport;
 use crate::detect::stage2::{ReadOptions, Stage2};
 use crate::detect::{BenchDetector, Detection};
 use crate::geometry::Camera;
+use crate::geometry::Quad;
 use crate::image::GrayImage;
 use crate::pose::PoseJson;
 use crate::synth::Truth;
@@ -19,7 +20,7 @@ pub struct Stage2FromTruth {
     camera: Camera,
     side_m: f64,
     rng: ChaCha8Rng,
-    rois: Vec<[[f64; 2]; 4]>,
+    rois: Vec<Quad>,
     refinements: Vec<RefineReport>,
 }
 
@@ -67,12 +68,12 @@ impl BenchDetector for Stage2FromTruth {
             .map(|m| {
                 let side = (m.roi[1][0] - m.roi[0][0]).hypot(m.roi[1][1] - m.roi[0][1]);
                 let r = noise * side;
-                std::array::from_fn(|j| {
+                Quad(std::array::from_fn(|j| {
                     [
                         m.roi[j][0] + rng.random_range(-r..=r),
                         m.roi[j][1] + rng.random_range(-r..=r),
                     ]
-                })
+                }))
             })
             .collect();
     }

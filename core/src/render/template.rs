@@ -5,13 +5,14 @@
 use super::raster::{gray_at, rasterize};
 use super::scene::{marker_scene, RenderError, SceneOptions};
 use crate::family::Family;
+use crate::geometry::Quad;
 use crate::geometry::{warp_bilinear, Homography};
 use crate::image::GrayImage;
 
 /// The ROI square's corners in a `size`-pixel template with margin `a` (fraction of the side).
-pub fn template_corners(size: u32, margin: f64) -> [[f64; 2]; 4] {
+pub fn template_corners(size: u32, margin: f64) -> Quad {
     let (lo, hi) = (margin * size as f64, (1.0 - margin) * size as f64);
-    [[lo, lo], [hi, lo], [hi, hi], [lo, hi]]
+    Quad([[lo, lo], [hi, lo], [hi, hi], [lo, hi]])
 }
 
 /// Renders ID `id` and rectifies it into a `size` × `size` gray template with the family's ROI

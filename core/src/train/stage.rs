@@ -3,6 +3,7 @@
 //! optimiser, learning-rate schedule, data workers, checkpoints, resume, events, report — so a
 //! new stage implements this trait and gets all of it.
 
+use crate::geometry::Quad;
 use crate::image::GrayImage;
 use burn::module::Module;
 use burn::tensor::{Device, Tensor};
@@ -69,5 +70,5 @@ pub struct Picture {
     /// Keypoints and the category each carries.
     pub keypoints: Vec<([f64; 2], usize)>,
     /// Marker outlines (ROIs), corner 0 first.
-    pub outlines: Vec<[[f64; 2]; 4]>,
+    pub outlines: Vec<Quad>,
 }

@@ -16,6 +16,7 @@ use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 use tagsmith::detect::{Detection, Timings};
 use tagsmith::family::FamilySpec;
+use tagsmith::geometry::Quad;
 
 /// One image to detect on, with the detector to use.
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -40,7 +41,7 @@ pub struct DetectRequest {
 pub struct Shown {
     pub detection: Detection,
     /// Stage 1's ROI it was read from.
-    pub roi: [[f64; 2]; 4],
+    pub roi: Quad,
     /// The alignment with the rendering moved its keypoints.
     pub refined: bool,
     /// Its pose's axes in the image (origin, x, y, z ends), when posed.

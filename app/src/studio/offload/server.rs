@@ -201,8 +201,8 @@ mod tests {
         };
         for (d, r) in direct.markers.iter().zip(&reply.markers) {
             assert_eq!(d.detection.family, r.detection.family);
-            assert!(near(&d.detection.corners, &r.detection.corners));
-            assert!(near(&d.roi, &r.roi));
+            assert!(near(&d.detection.corners.0, &r.detection.corners.0));
+            assert!(near(&d.roi.0, &r.roi.0));
             assert!(near(&d.axes.unwrap(), &r.axes.unwrap()));
             assert_eq!(d.detection.keypoints.len(), r.detection.keypoints.len());
         }

@@ -27,7 +27,6 @@ use super::stage2::model_file::ModelError;
 use super::stage2::{ReadOptions, Stage2, Stage2Result};
 use super::{BenchDetector, Detection};
 use crate::family::Family;
-use crate::geometry::largest_corner_move;
 use crate::geometry::{Camera, PoseJson};
 use crate::image::GrayImage;
 use crate::io::Stopwatch;
@@ -439,7 +438,7 @@ fn edge_refits(image: &GrayImage, rounds: &Rounds, budget: usize, min_move: f64)
         let Some(corners) = on_edges(image, p.corners) else {
             continue;
         };
-        let tried = |q: &Proposal| largest_corner_move(&q.corners, &corners) < min_move;
+        let tried = |q: &Proposal| q.corners.largest_corner_move(&corners) < min_move;
         if !rounds.read.iter().chain(&refits).any(tried) {
             refits.push(Proposal { corners, ..*p });
         }

@@ -11,7 +11,8 @@ use crate::detect::stage1::group::{same_quad, Proposal};
 use crate::detect::stage2::{PassMemo, ReadOptions, Stage2Result};
 use crate::detect::DetectedKeypoint;
 use crate::family::{Assignment, Family};
-use crate::geometry::{largest_corner_move, Camera, Homography};
+use crate::geometry::Quad;
+use crate::geometry::{Camera, Homography};
 use crate::image::GrayImage;
 use crate::io::Stopwatch;
 use rayon::prelude::*;
@@ -120,7 +121,7 @@ impl Detector {
         timings: &mut Timings,
     ) -> Vec<Vec<usize>> {
         let clock = Stopwatch::start();
-        let rois: Vec<[[f64; 2]; 4]> = proposals.iter().map(|p| p.corners).collect();
+        let rois: Vec<Quad> = proposals.iter().map(|p| p.corners).collect();
         let weak = self.options.accept.weak_roi_score;
         let trusted = |i: usize| batch.trust == Trust::First && proposals[i].score >= weak;
         let sampled = batch
@@ -194,7 +195,7 @@ impl Detector {
         batch: Batch,
         timings: &mut Timings,
     ) -> Vec<Option<Found>> {
-        let rois: Vec<[[f64; 2]; 4]> = proposals.iter().map(|p| p.corners).collect();
+        let rois: Vec<Quad> = proposals.iter().map(|p| p.corners).collect();
         let verified = self.verify(image, proposals, batch, timings);
         let clock = Stopwatch::start();
         let mut best: Vec<Option<Found>> = vec![None; proposals.len()];
@@ -208,7 +209,7 @@ impl Detector {
             // The first stage-2 pass over every verified quad in one batch (and the retries from
             // their keypoints); only the ROIs decoded get the second pass, the alignment and the
             // pose.
-            let checked_rois: Vec<[[f64; 2]; 4]> = checked.iter().map(|&i| rois[i]).collect();
+            let checked_rois: Vec<Quad> = checked.iter().map(|&i| rois[i]).collect();
             timings.reads += checked_rois.len();
             let options = ReadOptions {
                 retried_rois: batch.params.retried_rois,
@@ -258,7 +259,7 @@ impl Detector {
     fn sample_for_prechecks(
         &self,
         image: &GrayImage,
-        quads: &[[[f64; 2]; 4]],
+        quads: &[Quad],
     ) -> Option<Vec<Option<QuadSample>>> {
         self.readers
             .iter()
@@ -281,7 +282,7 @@ impl Detector {
         timings: &mut Timings,
     ) -> Vec<Option<Found>> {
         let mut best: Vec<Option<Found>> = vec![None; proposals.len()];
-        let rois: Vec<[[f64; 2]; 4]> = proposals.iter().map(|p| p.corners).collect();
+        let rois: Vec<Quad> = proposals.iter().map(|p| p.corners).collect();
         let clock = Stopwatch::start();
         let sampled = self.sample_for_prechecks(image, &rois);
         timings.verify_ms += clock.ms();
@@ -367,7 +368,7 @@ impl Detector {
         framed.retain(|(i, p)| {
             best[*i].is_none()
                 && (*i >= tried
-                    || largest_corner_move(&proposals[*i].corners, &p.corners) >= min_move)
+                    || proposals[*i].corners.largest_corner_move(&p.corners) >= min_move)
         });
         let mut fitted: Vec<(usize, Proposal)> = Vec::new();
         for (i, p) in framed {
@@ -388,7 +389,7 @@ impl Detector {
 }
 
 /// The corners of a ROI fitted to a marker's frame.
-type FittedCorners = [[f64; 2]; 4];
+type FittedCorners = Quad;
 
 /// Files one family's reads (proposal index, marker) into `best`: where two families read one
 /// ROI, the one whose code needed fewer corrections stays.
@@ -446,7 +447,7 @@ fn cell_result(family: &Family, read: &CellRead) -> Option<Stage2Result> {
         rotation_deg: rotation.angle_deg,
         corrected_errors: read.decoded.corrected_errors,
         fixed_mismatches: read.decoded.fixed_mismatches,
-        corners: std::array::from_fn(|j| to_pixels.apply(roi[j])),
+        corners: Quad(std::array::from_fn(|j| to_pixels.apply(roi[j]))),
         missing: 0,
         keypoints,
         iterations: 1,

@@ -5,7 +5,7 @@
 use super::Found;
 use crate::detect::stage1::group::{nested, same_quad, Proposal};
 use crate::detect::stage1::pipeline::Outlined;
-use crate::geometry::polygon_area;
+use crate::geometry::Quad;
 use std::cmp::Ordering;
 
 /// How strongly a read is supported.
@@ -45,7 +45,7 @@ pub(super) struct Rounds {
 
 impl Rounds {
     /// The strong reads' corners: the image searches skip what lies inside them.
-    pub fn covered(&self) -> Vec<[[f64; 2]; 4]> {
+    pub fn covered(&self) -> Vec<Quad> {
         (self.found.iter())
             .filter(|f| f.evidence.strong)
             .map(|f| f.marker.corners)
@@ -77,9 +77,7 @@ impl Rounds {
     pub fn over_a_marker_read(&self, p: &Proposal) -> bool {
         self.found.iter().any(|f| {
             nested(&f.marker.corners, &p.corners)
-                && (f.evidence.strong
-                    || 2.0 * polygon_area(&p.corners).abs()
-                        >= polygon_area(&f.marker.corners).abs())
+                && (f.evidence.strong || 2.0 * p.corners.area() >= f.marker.corners.area())
         })
     }
 

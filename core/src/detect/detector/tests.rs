@@ -1,7 +1,7 @@
 use super::reconcile::{reconcile, Evidence};
 use super::sources::{Source, Trust};
 use super::*;
-use crate::geometry::largest_corner_move;
+use crate::geometry::Quad;
 
 #[test]
 fn a_family_without_weights_is_named_with_the_command_that_trains_them() {
@@ -31,7 +31,7 @@ fn a_read(corrected_errors: usize) -> Stage2Result {
         rotation_deg: 0.0,
         corrected_errors,
         fixed_mismatches: 0,
-        corners: [[0.0, 0.0], [100.0, 0.0], [100.0, 100.0], [0.0, 100.0]],
+        corners: Quad([[0.0, 0.0], [100.0, 0.0], [100.0, 100.0], [0.0, 100.0]]),
         keypoints: Vec::new(),
         missing: 0,
         iterations: 2,
@@ -169,7 +169,7 @@ fn a_short_code_read_must_fit_its_pose() {
     assert!(short.accepts(&posed(2.5), Trust::First, 0.9, &lenient));
 }
 
-fn found_at(corners: [[f64; 2]; 4], id: usize, corrections: usize, rms_pitch: f64) -> Found {
+fn found_at(corners: Quad, id: usize, corrections: usize, rms_pitch: f64) -> Found {
     Found {
         family: "apriltag-36h11".into(),
         marker: Stage2Result {
@@ -199,8 +199,8 @@ fn found_at(corners: [[f64; 2]; 4], id: usize, corrections: usize, rms_pitch: f6
     }
 }
 
-fn square(x: f64, y: f64, side: f64) -> [[f64; 2]; 4] {
-    [[x, y], [x + side, y], [x + side, y + side], [x, y + side]]
+fn square(x: f64, y: f64, side: f64) -> Quad {
+    Quad([[x, y], [x + side, y], [x + side, y + side], [x, y + side]])
 }
 
 /// A quad over a row of four markers read as one code with many corrections never displaces
@@ -248,12 +248,12 @@ fn one_marker_read_twice_keeps_the_read_with_the_best_evidence() {
 /// A marker 60 cm away at 65°, 62 × 25 px (development seed 22 #57, cut at x 700–1100,
 /// y 330–630).
 const STEEP: &[u8] = include_bytes!("../testdata/steep-60cm-65deg.png");
-const STEEP_TRUTH: [[f64; 2]; 4] = [
+const STEEP_TRUTH: Quad = Quad([
     [255.92, 194.07],
     [222.53, 141.59],
     [243.33, 159.47],
     [275.62, 209.46],
-];
+]);
 
 /// A quad 6 px off fails in the network and in the cells, but its frame fits: the network
 /// reads the marker from the fitted corners. (Its quad fitted to the image's edges reads
@@ -280,8 +280,8 @@ fn detector_for_search_tests(family: Family) -> Detector {
     Detector::new(stage1, vec![FamilyReader::shipped(family).unwrap()]).unwrap()
 }
 
-fn assert_corners_within(found: &Found, truth: &[[f64; 2]; 4], px: f64) {
-    let worst = largest_corner_move(&found.marker.corners, truth);
+fn assert_corners_within(found: &Found, truth: &Quad, px: f64) {
+    let worst = found.marker.corners.largest_corner_move(truth);
     assert!(worst < px, "corners {worst:.2} px off");
 }
 
@@ -305,12 +305,12 @@ fn a_far_sliver_is_read_after_a_closer_look() {
 /// `tagsmith eval generate apriltag-36h11 --seed 43 --per-cell 5`, image 498, cut at x
 /// 593–913, y 472–712: ID 158 100 cm away at 75°, a needle 45 px long and 6 px across.
 const THIN_NEEDLE: &[u8] = include_bytes!("../testdata/needle-100cm-75deg.png");
-const THIN_NEEDLE_TRUTH: [[f64; 2]; 4] = [
+const THIN_NEEDLE_TRUTH: Quad = Quad([
     [149.39, 120.01],
     [139.42, 108.92],
     [171.99, 120.83],
     [180.9, 131.74],
-];
+]);
 
 /// The shipped networks read this needle only through the stretched look: neither the
 /// network's grouping nor any other search finds it (the shipped stage 1, not the one the
@@ -332,12 +332,12 @@ fn a_thin_needle_is_read_after_a_stretched_look() {
 /// 714–1034, y 518–758: ID 388 80 cm away at 75°, turned so that it is a rhombus 70 px long
 /// and 6 px across, on flat background.
 const FAR_RHOMBUS: &[u8] = include_bytes!("../testdata/far-rhombus-80cm-75deg.png");
-const FAR_RHOMBUS_TRUTH: [[f64; 2]; 4] = [
+const FAR_RHOMBUS_TRUTH: Quad = Quad([
     [160.67, 124.61],
     [125.78, 110.33],
     [157.73, 113.76],
     [194.12, 128.86],
-];
+]);
 
 /// The closer look's crop, normalised as the whole image is, shows the network the rhombus
 /// it finds in the image doubled; normalised by its own contrast, or centred on the
@@ -362,12 +362,12 @@ fn a_far_rhombus_is_read_after_a_closer_look_through_the_images_contrast() {
 /// blobs trace more quads than the network reads, largest first, and the marker's comes
 /// after them.
 const CLUTTERED: &[u8] = include_bytes!("../testdata/cluttered-100cm-60deg.png");
-const CLUTTERED_TRUTH: [[f64; 2]; 4] = [
+const CLUTTERED_TRUTH: Quad = Quad([
     [317.47, 317.16],
     [306.80, 317.55],
     [281.22, 287.25],
     [291.01, 285.51],
-];
+]);
 
 /// The traced quads the network's reads do not reach still get cell reads. (The stretched
 /// look and the edge fits read this one too, before the cells: off here.)
@@ -392,12 +392,12 @@ fn a_sliver_traced_past_the_networks_reads_is_read_by_its_cells() {
 /// 150–630): the one quad the searches propose for it, traced, is 2–3 px off at two
 /// corners, too far for stage 2 on a marker 10 px across.
 const EDGE_SLIVER: &[u8] = include_bytes!("../testdata/aruco-sliver-100cm-60deg.png");
-const EDGE_SLIVER_TRUTH: [[f64; 2]; 4] = [
+const EDGE_SLIVER_TRUTH: Quad = Quad([
     [309.79, 220.48],
     [320.01, 251.80],
     [309.15, 237.93],
     [298.74, 205.61],
-];
+]);
 
 /// Moved onto the image's edges, a quad stage 2 failed on is read. (The stretched look,
 /// which comes before the edge fits, reads this one too: off here.) The weights are ArUco's own,
@@ -425,12 +425,12 @@ fn a_sliver_is_read_once_its_quad_is_fitted_to_the_edges() {
 /// image 348, cut at x 640–1280, y 430–910). Stage 1 finds corners near all four of its
 /// corners, but each points along the needle, so the grouping pairs none of them.
 const NEEDLE: &[u8] = include_bytes!("../testdata/needle-70cm-75deg.png");
-const NEEDLE_TRUTH: [[f64; 2]; 4] = [
+const NEEDLE_TRUTH: Quad = Quad([
     [318.78, 237.73],
     [353.10, 251.80],
     [302.52, 243.06],
     [268.69, 229.63],
-];
+]);
 
 /// Four corners whose sides the image's edges confirm make the needle's quad.
 #[test]
@@ -590,7 +590,7 @@ fn tracking_follows_a_moving_marker_and_runs_stage_1_only_when_needed() {
         ..TrackParams::default()
     });
     let mut fulls = Vec::new();
-    let mut last: Option<[[f64; 2]; 4]> = None;
+    let mut last: Option<Quad> = None;
     for k in 0..6u32 {
         let frame = tracker.next(&detector, &marker_at(60 + 6 * k, 40 + 4 * k), None);
         assert_eq!(frame.found.len(), 1, "frame {k}");
@@ -598,8 +598,8 @@ fn tracking_follows_a_moving_marker_and_runs_stage_1_only_when_needed() {
         let corners = frame.found[0].marker.corners;
         if let Some(before) = last {
             // Each frame moves the marker by (6, 4) px.
-            let moved: [[f64; 2]; 4] = before.map(|[x, y]| [x + 6.0, y + 4.0]);
-            assert!(largest_corner_move(&moved, &corners) < 1.0, "frame {k}");
+            let moved: Quad = before.map(|[x, y]| [x + 6.0, y + 4.0]);
+            assert!(moved.largest_corner_move(&corners) < 1.0, "frame {k}");
         }
         if !frame.full {
             assert_eq!(frame.timings.propose_ms, 0.0);

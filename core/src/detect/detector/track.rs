@@ -8,7 +8,8 @@ use super::sources::{SourceParams, Trust, DEFAULT_SOURCES};
 use super::{Detector, Found, Timings};
 use crate::detect::stage1::group::Proposal;
 use crate::detect::stage2::ReadOptions;
-use crate::geometry::{check_quad, Camera};
+use crate::geometry::Camera;
+use crate::geometry::Quad;
 use crate::image::GrayImage;
 use crate::io::Stopwatch;
 
@@ -47,7 +48,7 @@ pub struct Tracker {
     pub params: TrackParams,
     /// The last frame's markers, and the frame before's corners of each where it was read there
     /// too (for the motion).
-    last: Vec<(Found, Option<[[f64; 2]; 4]>)>,
+    last: Vec<(Found, Option<Quad>)>,
     since_full: usize,
 }
 
@@ -68,7 +69,7 @@ impl Tracker {
     ) -> Frame {
         let due = self.last.is_empty() || self.since_full + 1 >= self.params.redetect_every;
         if !due {
-            let predicted: Vec<(Found, [[f64; 2]; 4])> = self
+            let predicted: Vec<(Found, Quad)> = self
                 .last
                 .iter()
                 .map(|(f, before)| (f.clone(), predict(&f.marker.corners, before.as_ref())))
@@ -118,17 +119,17 @@ impl Tracker {
 
 /// Where a marker's corners will be in the next frame: moved as they moved from the frame
 /// before (constant velocity), or where they were.
-fn predict(now: &[[f64; 2]; 4], before: Option<&[[f64; 2]; 4]>) -> [[f64; 2]; 4] {
+fn predict(now: &Quad, before: Option<&Quad>) -> Quad {
     let Some(before) = before else {
         return *now;
     };
-    let moved: [[f64; 2]; 4] = std::array::from_fn(|i| {
+    let moved: Quad = Quad(std::array::from_fn(|i| {
         [
             2.0 * now[i][0] - before[i][0],
             2.0 * now[i][1] - before[i][1],
         ]
-    });
-    if check_quad(&moved).is_ok() {
+    }));
+    if moved.check().is_ok() {
         moved
     } else {
         *now
@@ -151,7 +152,7 @@ impl Detector {
     pub fn reread(
         &self,
         image: &GrayImage,
-        predicted: &[(Found, [[f64; 2]; 4])],
+        predicted: &[(Found, Quad)],
         camera: Option<&Camera>,
         passes: usize,
     ) -> (Vec<Found>, Timings) {

@@ -15,6 +15,7 @@
 
 pub mod template;
 
+use crate::geometry::Quad;
 use crate::geometry::{Camera, Homography};
 use crate::image::GrayImage;
 use crate::io::Stopwatch;
@@ -155,9 +156,9 @@ pub fn refine(
     template: &Template,
     lens: Lens,
     start: &Homography,
-    roi: &[[f64; 2]; 4],
+    roi: &Quad,
 ) -> Refined {
-    let centre = roi_centre(roi);
+    let centre = roi.centre();
     let refused = |reason: String, report: Option<RefineReport>| Refined {
         homography: *start,
         covariance: None,
@@ -464,9 +465,9 @@ pub fn refine_marker(
     cache: &TemplateCache,
 ) -> Result<Refined, crate::render::scene::RenderError> {
     let roi = family.roi_points();
-    let roi: [[f64; 2]; 4] = std::array::from_fn(|i| roi[i]);
+    let roi: Quad = Quad(std::array::from_fn(|i| roi[i]));
     // A degenerate start is refused by `refine`; any density will do for it.
-    let ppu = pixels_per_unit(lens, &start.0, roi_centre(&roi)).unwrap_or(1.0);
+    let ppu = pixels_per_unit(lens, &start.0, roi.centre()).unwrap_or(1.0);
     let tpu = Template::texels_for(family, ppu);
     let clock = Stopwatch::start();
     let template = cache.get(family, id, tpu)?;
@@ -494,7 +495,7 @@ struct Aligner<'a> {
     /// Centred marker units → lens plane.
     hc: Matrix3<f64>,
     /// ROI corners, centred marker units.
-    roi: [[f64; 2]; 4],
+    roi: Quad,
     /// The ROI's centre, marker units.
     centre: [f64; 2],
     pixels: Vec<Pixel>,
@@ -717,7 +718,7 @@ impl Aligner<'_> {
                 let start = g * nalgebra::Vector3::new(lo_x as f64 + half, y as f64 + half, 1.0);
                 (start, g.column(0) * block as f64)
             });
-            let (first, last) = match level_quad.map(|q| row_span(&q, y as f64 + half)) {
+            let (first, last) = match level_quad.map(|q| row_span(&Quad(q), y as f64 + half)) {
                 // (A pixel of slack for the rounding of the quad's corners.)
                 Some(Some((from, to))) => (
                     ((from - 1.0 - half - lo_x as f64) / block as f64)
@@ -1211,14 +1212,6 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
     partial.iter().sum::<f64>() + tail
 }
 
-/// The mean of the ROI's four points, marker units.
-fn roi_centre(roi: &[[f64; 2]; 4]) -> [f64; 2] {
-    [
-        roi.iter().map(|p| p[0]).sum::<f64>() / 4.0,
-        roi.iter().map(|p| p[1]).sum::<f64>() / 4.0,
-    ]
-}
-
 /// Image pixels per marker unit at marker point `at` through `h` (marker units → lens plane):
 /// the square root of the local area ratio; `None` for a degenerate homography.
 fn pixels_per_unit(lens: Lens, h: &Matrix3<f64>, at: [f64; 2]) -> Option<f64> {
@@ -1230,7 +1223,7 @@ fn pixels_per_unit(lens: Lens, h: &Matrix3<f64>, at: [f64; 2]) -> Option<f64> {
 }
 
 /// The x extent of a convex quadrilateral on the row at height `y`; `None` when the row misses it.
-fn row_span(quad: &[[f64; 2]; 4], y: f64) -> Option<(f64, f64)> {
+fn row_span(quad: &Quad, y: f64) -> Option<(f64, f64)> {
     let mut span: Option<(f64, f64)> = None;
     for i in 0..4 {
         let (a, b) = (quad[i], quad[(i + 1) % 4]);

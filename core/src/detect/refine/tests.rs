@@ -1,5 +1,6 @@
 use super::*;
 use crate::family::Family;
+use crate::geometry::Quad;
 use crate::render::raster::{gray_at, rasterize};
 use crate::render::scene::{marker_scene, SceneOptions};
 
@@ -138,8 +139,8 @@ fn start_from(family: &Family, truth: &Homography) -> Homography {
     Homography::from_points(&roi[..4], &image).unwrap()
 }
 
-fn roi4(family: &Family) -> [[f64; 2]; 4] {
-    std::array::from_fn(|i| family.roi_points()[i])
+fn roi4(family: &Family) -> Quad {
+    Quad(std::array::from_fn(|i| family.roi_points()[i]))
 }
 
 #[test]

@@ -11,8 +11,8 @@
 //! 8 end within a pixel (with the traced quads' single pass over a 2-px step, 2: that coarser
 //! fit stays theirs, as it read two more of 1300 dev markers than this one there).
 
-use super::group::quad_centre;
-use crate::geometry::{distance, largest_corner_move, polygon_area};
+use crate::geometry::distance;
+use crate::geometry::Quad;
 use crate::image::GrayImage;
 
 /// A line: a point on it and its unit direction.
@@ -34,7 +34,7 @@ const MAX_SAMPLES: usize = 64;
 
 /// The quad with all four sides on the image's edges (two passes), or `None` where a side
 /// shows no clear edge or the fit would move a corner by more than 15 % of the longest side.
-pub fn on_edges(image: &GrayImage, quad: [[f64; 2]; 4]) -> Option<[[f64; 2]; 4]> {
+pub fn on_edges(image: &GrayImage, quad: Quad) -> Option<Quad> {
     REACH_PX.iter().try_fold(quad, |q, &reach| {
         let lines = side_lines(image, &q, reach);
         let lines: [Line; 4] = [lines[0]?, lines[1]?, lines[2]?, lines[3]?];
@@ -43,23 +43,21 @@ pub fn on_edges(image: &GrayImage, quad: [[f64; 2]; 4]) -> Option<[[f64; 2]; 4]>
 }
 
 /// Each side's edge line, where it shows one within `reach` px.
-fn side_lines(image: &GrayImage, quad: &[[f64; 2]; 4], reach: f64) -> [Option<Line>; 4] {
-    let centre = quad_centre(quad);
+fn side_lines(image: &GrayImage, quad: &Quad, reach: f64) -> [Option<Line>; 4] {
+    let centre = quad.centre();
     std::array::from_fn(|i| side_line(image, quad[i], quad[(i + 1) % 4], centre, reach))
 }
 
 /// The quad's corners where neighbouring lines meet, or `None` when they move too far or turn
 /// the quad inside out.
-fn corners_of(quad: &[[f64; 2]; 4], lines: &[Line; 4]) -> Option<[[f64; 2]; 4]> {
+fn corners_of(quad: &Quad, lines: &[Line; 4]) -> Option<Quad> {
     let mut out = *quad;
     for (i, corner) in out.iter_mut().enumerate() {
         *corner = intersection(lines[(i + 3) % 4], lines[i])?;
     }
-    let longest = (0..4)
-        .map(|i| distance(quad[i], quad[(i + 1) % 4]))
-        .fold(0.0, f64::max);
-    let same_turn = polygon_area(&out) * polygon_area(quad) > 0.0;
-    (largest_corner_move(&out, quad) <= 0.15 * longest && same_turn).then_some(out)
+    let longest = quad.longest_side();
+    let same_turn = out.signed_area() * quad.signed_area() > 0.0;
+    (out.largest_corner_move(quad) <= 0.15 * longest && same_turn).then_some(out)
 }
 
 /// The edge along the side `a`–`b`: at up to [`MAX_SAMPLES`] points of its middle 70 %, the
@@ -178,12 +176,11 @@ pub(super) fn intersection(a: Line, b: Line) -> Option<[f64; 2]> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::inside_polygon;
 
     /// A dark quad on a light quiet zone 1.2 px wide, on dark ground: a far steep marker on a
     /// dark table. Supersampled 4 × 4 per pixel so its edges fall between pixels.
-    fn sliver_on_dark_ground(quad: &[[f64; 2]; 4]) -> GrayImage {
-        let centre = quad_centre(quad);
+    fn sliver_on_dark_ground(quad: &Quad) -> GrayImage {
+        let centre = quad.centre();
         // The quiet zone's outline: every side moved out by 1.2 px.
         let grown = {
             let lines: Vec<Line> = (0..4)
@@ -199,9 +196,9 @@ mod tests {
                     ([a[0] + 1.2 * n[0], a[1] + 1.2 * n[1]], u)
                 })
                 .collect();
-            let q: [[f64; 2]; 4] =
-                std::array::from_fn(|i| intersection(lines[(i + 3) % 4], lines[i]).unwrap());
-            q
+            Quad(std::array::from_fn(|i| {
+                intersection(lines[(i + 3) % 4], lines[i]).unwrap()
+            }))
         };
         let (w, h) = (120u32, 100u32);
         let mut pixels = Vec::with_capacity((w * h) as usize);
@@ -215,9 +212,9 @@ mod tests {
                             x as f64 - 0.5 + (sx as f64 + 0.5) / 4.0,
                             y as f64 - 0.5 + (sy as f64 + 0.5) / 4.0,
                         ];
-                        sum += if inside_polygon(quad, p) {
+                        sum += if quad.encloses(p) {
                             30.0
-                        } else if inside_polygon(&grown, p) {
+                        } else if grown.encloses(p) {
                             220.0
                         } else {
                             40.0
@@ -230,23 +227,23 @@ mod tests {
         GrayImage::from_vec(w, h, pixels)
     }
 
-    const SLIVER: [[f64; 2]; 4] = [[50.3, 20.6], [61.8, 24.1], [58.4, 80.2], [47.1, 76.9]];
+    const SLIVER: Quad = Quad([[50.3, 20.6], [61.8, 24.1], [58.4, 80.2], [47.1, 76.9]]);
 
     #[test]
     fn a_sliver_a_few_pixels_off_is_moved_onto_its_edges() {
         let image = sliver_on_dark_ground(&SLIVER);
         // Off as stage 1's grid or a traced hull leaves a sliver 11 px across: 2–4 px.
-        let rough = [[52.0, 18.5], [59.0, 24.0], [61.0, 77.0], [45.0, 79.0]];
+        let rough = Quad([[52.0, 18.5], [59.0, 24.0], [61.0, 77.0], [45.0, 79.0]]);
         let fitted = on_edges(&image, rough).expect("four clear sides");
-        let error = largest_corner_move(&fitted, &SLIVER);
+        let error = fitted.largest_corner_move(&SLIVER);
         assert!(error < 0.5, "{fitted:?} is {error:.2} px off");
-        assert!(largest_corner_move(&rough, &SLIVER) > 2.0);
+        assert!(rough.largest_corner_move(&SLIVER) > 2.0);
     }
 
     #[test]
     fn a_quad_with_no_edges_is_left_alone() {
         let flat = GrayImage::new(120, 100, 128);
-        let rough = [[52.0, 18.5], [59.0, 24.0], [61.0, 77.0], [45.0, 79.0]];
+        let rough = Quad([[52.0, 18.5], [59.0, 24.0], [61.0, 77.0], [45.0, 79.0]]);
         assert_eq!(on_edges(&flat, rough), None);
     }
 }

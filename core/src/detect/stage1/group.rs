@@ -9,7 +9,7 @@
 //! that the detector can select again without quads stage 2 could not read ([`select`]).
 
 use super::STRIDE;
-use crate::geometry::inside_polygon as inside;
+use crate::geometry::Quad;
 
 /// A corner found on the heat map, in image pixels.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -25,7 +25,7 @@ pub struct Corner {
 /// turned by any quarter.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Proposal {
-    pub corners: [[f64; 2]; 4],
+    pub corners: Quad,
     /// Mean corner confidence × how well the mask marks the quad out (inside minus around) ×
     /// how well the corners' directions point at its centre.
     pub score: f64,
@@ -174,11 +174,6 @@ fn cross(a: [f64; 2], b: [f64; 2]) -> f64 {
     a[0] * b[1] - a[1] * b[0]
 }
 
-/// Twice the signed area; positive for clockwise order in image coordinates (y down).
-fn signed_area(q: &[[f64; 2]; 4]) -> f64 {
-    (0..4).map(|i| cross(q[i], q[(i + 1) % 4])).sum()
-}
-
 /// Where the segments a→b and c→d cross, as fractions along each.
 fn crossing(a: [f64; 2], b: [f64; 2], c: [f64; 2], d: [f64; 2]) -> Option<(f64, f64)> {
     let (r, s) = (sub(b, a), sub(d, c));
@@ -191,7 +186,7 @@ fn crossing(a: [f64; 2], b: [f64; 2], c: [f64; 2], d: [f64; 2]) -> Option<(f64, 
 }
 
 /// The mean and the lowest of `mask` at nine points spread over the quad's inside.
-pub fn mask_inside(q: &[[f64; 2]; 4], mask: &dyn Fn([f64; 2]) -> f64) -> (f64, f64) {
+pub fn mask_inside(q: &Quad, mask: &dyn Fn([f64; 2]) -> f64) -> (f64, f64) {
     let (mut sum, mut lowest) = (0.0, f64::MAX);
     for v in [0.25, 0.5, 0.75] {
         for u in [0.25, 0.5, 0.75] {
@@ -216,8 +211,8 @@ pub fn mask_inside(q: &[[f64; 2]; 4], mask: &dyn Fn([f64; 2]) -> f64) -> (f64, f
 
 /// The mean of `mask` around the quad: its corners and edge midpoints pushed out from the centre
 /// by half again (past a one-cell white border, which the mask counts as marker).
-fn mask_outside(q: &[[f64; 2]; 4], mask: &dyn Fn([f64; 2]) -> f64) -> f64 {
-    let c = quad_centre(q);
+fn mask_outside(q: &Quad, mask: &dyn Fn([f64; 2]) -> f64) -> f64 {
+    let c = q.centre();
     let out = |p: [f64; 2]| mask([c[0] + 1.5 * (p[0] - c[0]), c[1] + 1.5 * (p[1] - c[1])]);
     (0..4)
         .map(|i| {
@@ -230,7 +225,7 @@ fn mask_outside(q: &[[f64; 2]; 4], mask: &dyn Fn([f64; 2]) -> f64) -> f64 {
 
 /// How well the mask marks out the quad — inside minus around, 0 to 1 — or `None` when its
 /// inside is not marker (a quad spanning two markers and the gap between them).
-fn mask_fit(q: &[[f64; 2]; 4], mask: &dyn Fn([f64; 2]) -> f64, threshold: f64) -> Option<f64> {
+fn mask_fit(q: &Quad, mask: &dyn Fn([f64; 2]) -> f64, threshold: f64) -> Option<f64> {
     let (mean, lowest) = mask_inside(q, mask);
     if mean < threshold || lowest < threshold / 2.0 {
         return None;
@@ -241,8 +236,8 @@ fn mask_fit(q: &[[f64; 2]; 4], mask: &dyn Fn([f64; 2]) -> f64, threshold: f64) -
 
 /// The mean cosine between each corner's direction and the way to where the quad's diagonals
 /// cross: 1 when every corner points at the centre of this quad rather than another's.
-fn alignment(q: &[[f64; 2]; 4], directions: [[f64; 2]; 4]) -> f64 {
-    let Some(x) = super::targets::diagonal_crossing(q) else {
+fn alignment(q: &Quad, directions: [[f64; 2]; 4]) -> f64 {
+    let Some(x) = q.diagonal_crossing() else {
         return 0.0;
     };
     (0..4)
@@ -300,9 +295,9 @@ pub fn candidates(
             if !(0.15..=0.85).contains(&t) || !(0.15..=0.85).contains(&s) {
                 continue;
             }
-            let mut q = [pa, pc, pb, pd];
-            if signed_area(&q) < 0.0 {
-                q = [pa, pd, pb, pc];
+            let mut q = Quad([pa, pc, pb, pd]);
+            if q.twice_signed_area() < 0.0 {
+                q = Quad([pa, pd, pb, pc]);
             }
             if !sides_balanced(&q) {
                 continue;
@@ -316,7 +311,7 @@ pub fn candidates(
                     .find(|&&i| corners[i].at == p)
                     .map_or([0.0, 0.0], |&i| corners[i].direction)
             };
-            let aligned = alignment(&q, q.map(direction_of));
+            let aligned = alignment(&q, q.0.map(direction_of));
             let confidence = [a, b, c, d].iter().map(|&i| corners[i].score).sum::<f64>() / 4.0;
             candidates.push((
                 [a, b, c, d],
@@ -347,9 +342,9 @@ pub fn candidates(
                 continue;
             }
             let pd = [pa[0] + pb[0] - corner.at[0], pa[1] + pb[1] - corner.at[1]];
-            let mut q = [pa, corner.at, pb, pd];
-            if signed_area(&q) < 0.0 {
-                q = [pa, pd, pb, corner.at];
+            let mut q = Quad([pa, corner.at, pb, pd]);
+            if q.twice_signed_area() < 0.0 {
+                q = Quad([pa, pd, pb, corner.at]);
             }
             if !sides_balanced(&q) {
                 continue;
@@ -411,19 +406,19 @@ pub fn select(
 
 /// Whether either quad's centre lies inside the other: the same marker twice, or a quad over
 /// part of one — markers do not overlap.
-pub fn nested(a: &[[f64; 2]; 4], b: &[[f64; 2]; 4]) -> bool {
-    inside(a, quad_centre(b)) || inside(b, quad_centre(a))
+pub fn nested(a: &Quad, b: &Quad) -> bool {
+    a.encloses(b.centre()) || b.encloses(a.centre())
 }
 
 /// Whether two proposals mark the same quad: every corner within a fifth of the thinner quad's
-/// width ([`width`]) of the other's, and within [`MAX_SAME_OFFSET`], from any starting corner.
+/// width ([`Quad::width`]) of the other's, and within [`MAX_SAME_OFFSET`], from any starting corner.
 pub fn same_quad(a: &Proposal, b: &Proposal) -> bool {
     same_corners(&a.corners, &b.corners)
 }
 
 /// [`same_quad`] for bare corners.
-pub fn same_corners(a: &[[f64; 2]; 4], b: &[[f64; 2]; 4]) -> bool {
-    let tolerance = (0.2 * width(a).min(width(b))).min(MAX_SAME_OFFSET);
+pub fn same_corners(a: &Quad, b: &Quad) -> bool {
+    let tolerance = (0.2 * a.width().min(b.width())).min(MAX_SAME_OFFSET);
     (0..4).any(|shift| {
         (0..4).all(|i| {
             let d = sub(a[(i + shift) % 4], b[i]);
@@ -439,19 +434,8 @@ pub fn same_corners(a: &[[f64; 2]; 4], b: &[[f64; 2]; 4]) -> bool {
 const MAX_SAME_OFFSET: f64 = 8.0;
 
 /// No side under 15 % of the longest: flatter quads are slivers of clutter, not markers.
-fn sides_balanced(q: &[[f64; 2]; 4]) -> bool {
-    let sides = (0..4).map(|i| {
-        let e = sub(q[(i + 1) % 4], q[i]);
-        e[0].hypot(e[1])
-    });
-    let (shortest, longest) = sides.fold((f64::MAX, 0.0f64), |(lo, hi), x| (lo.min(x), hi.max(x)));
-    shortest >= 0.15 * longest
-}
-
-/// The mean of the four corners.
-pub fn quad_centre(q: &[[f64; 2]; 4]) -> [f64; 2] {
-    let s = q.iter().fold([0.0, 0.0], |s, p| [s[0] + p[0], s[1] + p[1]]);
-    [s[0] / 4.0, s[1] / 4.0]
+fn sides_balanced(q: &Quad) -> bool {
+    q.shortest_side() >= 0.15 * q.longest_side()
 }
 
 /// Keeps, of proposals that mark the same quad (every corner within a fifth of the shorter
@@ -465,31 +449,6 @@ pub fn merge_duplicates(mut proposals: Vec<Proposal>) -> Vec<Proposal> {
         }
     }
     kept
-}
-
-/// How thin the quad is: its shortest side, or the width across its longer diagonal where that is
-/// less. A marker turned steeply about its diagonal is a rhombus 80 px a side and 10 px across
-/// (dev seed 11 #27); judged by its sides, a quad 16 px off a corner of it was "the same", and
-/// its traced quad, 1 px off, was never read once that one had failed.
-fn width(q: &[[f64; 2]; 4]) -> f64 {
-    let diagonal = |i: usize| {
-        let d = sub(q[i + 2], q[i]);
-        d[0].hypot(d[1])
-    };
-    let longer = diagonal(0).max(diagonal(1));
-    if longer <= 0.0 {
-        return 0.0;
-    }
-    shortest_side(q).min(signed_area(q).abs() / longer)
-}
-
-fn shortest_side(q: &[[f64; 2]; 4]) -> f64 {
-    (0..4)
-        .map(|i| {
-            let e = sub(q[(i + 1) % 4], q[i]);
-            e[0].hypot(e[1])
-        })
-        .fold(f64::MAX, f64::min)
 }
 
 #[cfg(test)]
@@ -520,11 +479,11 @@ mod tests {
 
     /// A mask that is 1 on the given markers and 0 elsewhere.
     fn mask_of(quads: Vec<[[f64; 2]; 4]>) -> impl Fn([f64; 2]) -> f64 {
-        move |p| f64::from(u8::from(quads.iter().any(|q| inside(q, p))))
+        move |p| f64::from(u8::from(quads.iter().any(|&q| Quad(q).encloses(p))))
     }
 
     fn marker(corners: [[f64; 2]; 4]) -> Vec<Corner> {
-        let c = crate::detect::stage1::targets::diagonal_crossing(&corners).unwrap();
+        let c = Quad(corners).diagonal_crossing().unwrap();
         corners.iter().map(|&p| corner(p, c, 0.9)).collect()
     }
 
@@ -532,7 +491,7 @@ mod tests {
         Candidate {
             corners,
             proposal: Proposal {
-                corners: quad,
+                corners: Quad(quad),
                 score,
             },
         }
@@ -568,7 +527,7 @@ mod tests {
     fn the_same_quad_from_another_starting_corner_is_the_same() {
         let q = [[0.0, 0.0], [30.0, 0.0], [30.0, 30.0], [0.0, 30.0]];
         let p = |corners| Proposal {
-            corners,
+            corners: Quad(corners),
             score: 1.0,
         };
         let turned = [[30.5, 0.0], [30.0, 30.0], [0.0, 29.0], [1.0, 0.0]];
@@ -583,7 +542,7 @@ mod tests {
         // diagonal, seen nearly edge-on).
         let sliver = [[0.0, 0.0], [85.0, -5.0], [170.0, 0.0], [85.0, 5.0]];
         let p = |corners| Proposal {
-            corners,
+            corners: Quad(corners),
             score: 1.0,
         };
         let nudged = sliver.map(|[x, y]| [x + 1.5, y]);
@@ -606,7 +565,7 @@ mod tests {
             [726.0, 860.0],
         ];
         let p = |corners| Proposal {
-            corners,
+            corners: Quad(corners),
             score: 1.0,
         };
         let nudged = close.map(|[x, y]| [x + 3.0, y - 3.0]);
@@ -637,10 +596,10 @@ mod tests {
         let quads = group(&corners, &mask, &GroupOptions::default());
         assert_eq!(quads.len(), 2, "{quads:?}");
         for q in &quads {
-            assert!(signed_area(&q.corners) > 0.0);
-            let expected = if q.corners.contains(&a[0]) { a } else { b };
+            assert!(q.corners.twice_signed_area() > 0.0);
+            let expected = if q.corners.0.contains(&a[0]) { a } else { b };
             for p in expected {
-                assert!(q.corners.contains(&p));
+                assert!(q.corners.0.contains(&p));
             }
         }
     }
@@ -654,9 +613,9 @@ mod tests {
         let quads = group(&corners, &mask, &GroupOptions::default());
         assert_eq!(quads.len(), 1, "{quads:?}");
         let p = quads[0];
-        assert!(signed_area(&p.corners) > 0.0);
+        assert!(p.corners.twice_signed_area() > 0.0);
         // The fourth corner by parallelogram: (10,10) + (52,50) − (50,12).
-        assert!(p.corners.contains(&[12.0, 48.0]), "{p:?}");
+        assert!(p.corners.0.contains(&[12.0, 48.0]), "{p:?}");
         // A complete marker outscores a completed one.
         assert!(p.score < 0.9 * 0.8);
     }
@@ -673,7 +632,7 @@ mod tests {
         let quads = group(&corners, &mask, &GroupOptions::default());
         assert_eq!(quads.len(), 2, "{quads:?}");
         for q in quads {
-            assert!(q.corners.contains(&a[0]) == q.corners.contains(&a[2]));
+            assert!(q.corners.0.contains(&a[0]) == q.corners.0.contains(&a[2]));
         }
     }
 
@@ -691,15 +650,15 @@ mod tests {
         let other = [[60.0, 10.0], [90.0, 10.0], [90.0, 40.0], [60.0, 40.0]];
         let kept = merge_duplicates(vec![
             Proposal {
-                corners: q,
+                corners: Quad(q),
                 score: 0.5,
             },
             Proposal {
-                corners: shifted,
+                corners: Quad(shifted),
                 score: 0.8,
             },
             Proposal {
-                corners: other,
+                corners: Quad(other),
                 score: 0.4,
             },
         ]);

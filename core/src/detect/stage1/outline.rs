@@ -12,6 +12,7 @@
 //! quad of clutter costs one read, not a wrong ID.
 
 use super::group::{Candidate, Corner, Proposal};
+use crate::geometry::Quad;
 use crate::image::GrayImage;
 
 /// Limits of the outline search.
@@ -172,7 +173,7 @@ pub(super) fn cross(o: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
 
 /// Convex with every corner's turn the same way and no corner flatter than ~170°: the signed
 /// turning sense (+1 clockwise in image coordinates) or `None`.
-fn convex_turn(q: &[[f64; 2]; 4]) -> Option<f64> {
+fn convex_turn(q: &Quad) -> Option<f64> {
     let mut sense = 0.0;
     for i in 0..4 {
         let (p, c, n) = (q[(i + 3) % 4], q[i], q[(i + 1) % 4]);
@@ -254,7 +255,7 @@ pub fn outline_candidates(
                     let Some(da) = step_of(d, a) else {
                         continue;
                     };
-                    let q = [corners[a].at, corners[b].at, corners[c].at, corners[d].at];
+                    let q = Quad([corners[a].at, corners[b].at, corners[c].at, corners[d].at]);
                     // Dark on the right all round: clockwise is a dark-inside quad, anticlockwise
                     // a light-inside one (its inside is then on the left).
                     let Some(sense) = convex_turn(&q) else {
@@ -263,14 +264,9 @@ pub fn outline_candidates(
                     let (q, idx) = if sense > 0.0 {
                         (q, [a, b, c, d])
                     } else {
-                        ([q[0], q[3], q[2], q[1]], [a, d, c, b])
+                        (Quad([q[0], q[3], q[2], q[1]]), [a, d, c, b])
                     };
-                    let lens = (0..4).map(|i| {
-                        let (p, r) = (q[i], q[(i + 1) % 4]);
-                        (r[0] - p[0]).hypot(r[1] - p[1])
-                    });
-                    let (short, long) =
-                        lens.fold((f64::MAX, 0.0f64), |(s, l), x| (s.min(x), l.max(x)));
+                    let (short, long) = (q.shortest_side(), q.longest_side());
                     if short < options.min_side || short < 0.04 * long {
                         continue;
                     }
@@ -294,16 +290,15 @@ pub fn outline_candidates(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::inside_polygon;
     use rand::{Rng, SeedableRng};
 
     /// `fill` inside the quad, `ground` elsewhere, with sensor noise of `sigma`.
-    fn draw(q: &[[f64; 2]; 4], ground: u8, fill: u8, sigma: f64) -> GrayImage {
+    fn draw(q: &Quad, ground: u8, fill: u8, sigma: f64) -> GrayImage {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
         let mut image = GrayImage::new(160, 120, ground);
         for y in 0..120u32 {
             for x in 0..160u32 {
-                let base = if inside_polygon(q, [x as f64, y as f64]) {
+                let base = if q.encloses([x as f64, y as f64]) {
                     fill
                 } else {
                     ground
@@ -327,7 +322,7 @@ mod tests {
     }
 
     /// A steep view: 90 × 14 px, clockwise, with stage 1's corners a pixel or two off.
-    const SLIVER: [[f64; 2]; 4] = [[30.0, 50.0], [120.0, 42.0], [122.0, 58.0], [32.0, 66.0]];
+    const SLIVER: Quad = Quad([[30.0, 50.0], [120.0, 42.0], [122.0, 58.0], [32.0, 66.0]]);
 
     fn sliver_corners() -> Vec<Corner> {
         let off = [[1.5, -1.0], [-1.0, 1.5], [1.0, 1.0], [-1.5, -0.5]];
@@ -342,7 +337,7 @@ mod tests {
         corners
     }
 
-    fn matches(found: &[[f64; 2]; 4], truth: &[[f64; 2]; 4]) -> bool {
+    fn matches(found: &Quad, truth: &Quad) -> bool {
         (0..4).any(|k| {
             (0..4).all(|i| {
                 let (p, q) = (found[(i + k) % 4], truth[i]);
@@ -383,7 +378,7 @@ mod tests {
         );
         // Edges of the wrong shape: the same corners over a square elsewhere.
         let elsewhere = draw(
-            &[[60.0, 80.0], [100.0, 80.0], [100.0, 115.0], [60.0, 115.0]],
+            &Quad([[60.0, 80.0], [100.0, 80.0], [100.0, 115.0], [60.0, 115.0]]),
             210,
             30,
             2.0,

@@ -5,8 +5,8 @@
 
 use super::edges::on_edges;
 use super::group::{
-    candidates, image_from_level, mask_inside, merge_duplicates, quad_centre, same_quad, select,
-    Candidate, Corner, GroupOptions, Maps, Proposal,
+    candidates, image_from_level, mask_inside, merge_duplicates, same_quad, select, Candidate,
+    Corner, GroupOptions, Maps, Proposal,
 };
 use super::model_file::{self, Stage1Header};
 use super::net::{NetConfig, Stage1Net, MAPS};
@@ -17,7 +17,8 @@ use super::STRIDE;
 use crate::detect::blocks::Contrast;
 use crate::detect::model_file::ModelError;
 use crate::detect::plain_net::PlainNet;
-use crate::geometry::{distance, inside_polygon, polygon_area};
+use crate::geometry::distance;
+use crate::geometry::Quad;
 use crate::image::GrayImage;
 use burn::tensor::Device;
 use std::borrow::Cow;
@@ -142,7 +143,7 @@ impl Stage1 {
         &self,
         search: &Search,
         image: &GrayImage,
-        covered: &[[[f64; 2]; 4]],
+        covered: &[Quad],
         options: &ProposeOptions,
     ) -> Outlined {
         if !options.close_look || options.upsample {
@@ -241,7 +242,7 @@ impl Stage1 {
         &self,
         search: &Search,
         image: &GrayImage,
-        covered: &[[[f64; 2]; 4]],
+        covered: &[Quad],
         options: &ProposeOptions,
     ) -> Outlined {
         if !options.stretched_look {
@@ -264,9 +265,9 @@ impl Stage1 {
 /// Whether a read marker accounts for corner `p`: inside one of the `grown` quads, or within a
 /// few pixels of its outline (a read marker's own corners lie on it, outside a sliver's quad
 /// even grown by a fifth).
-fn explained_by(grown: &[[[f64; 2]; 4]], p: [f64; 2]) -> bool {
+fn explained_by(grown: &[Quad], p: [f64; 2]) -> bool {
     grown.iter().any(|q| {
-        inside_polygon(q, p) || (0..4).any(|i| distance_to_segment(p, q[i], q[(i + 1) % 4]) < 4.0)
+        q.encloses(p) || (0..4).any(|i| distance_to_segment(p, q[i], q[(i + 1) % 4]) < 4.0)
     })
 }
 
@@ -363,7 +364,7 @@ impl Search {
     /// when the search is off). Corners on or inside the `covered` quads (markers already read)
     /// are left out: a photograph full of read tags would otherwise spend most of the search
     /// outlining their borders and data cells again.
-    pub fn outline(&self, image: &GrayImage, covered: &[[[f64; 2]; 4]]) -> Outlined {
+    pub fn outline(&self, image: &GrayImage, covered: &[Quad]) -> Outlined {
         let Some(options) = &self.outline else {
             return Outlined(Vec::new());
         };
@@ -371,7 +372,7 @@ impl Search {
         let free: Vec<Corner> = self
             .weak_corners
             .iter()
-            .filter(|c| !grown.iter().any(|q| inside_polygon(q, c.at)))
+            .filter(|c| !grown.iter().any(|q| q.encloses(c.at)))
             .copied()
             .collect();
         let mut outlined = outline_candidates(image, &free, options);
@@ -383,7 +384,7 @@ impl Search {
 
     /// The quads traced around the image's dark blobs ([`super::traced`]; none when the search
     /// is off) away from the `covered` quads, largest first.
-    pub fn traced(&self, image: &GrayImage, covered: &[[[f64; 2]; 4]]) -> Outlined {
+    pub fn traced(&self, image: &GrayImage, covered: &[Quad]) -> Outlined {
         let Some(options) = &self.trace else {
             return Outlined(Vec::new());
         };
@@ -391,8 +392,8 @@ impl Search {
         let spots = self.unexplained_spots(covered, options);
         let mut out = Vec::new();
         for corners in traced_quads_near(image, &spots, options) {
-            let centre = quad_centre(&corners);
-            if grown.iter().any(|q| inside_polygon(q, centre)) {
+            let centre = corners.centre();
+            if grown.iter().any(|q| q.encloses(centre)) {
                 continue;
             }
             let support = self.mask_support(&corners);
@@ -417,13 +418,13 @@ impl Search {
     /// confirm ([`on_edges`]), fitted to them. The grouping pairs corners by the directions the
     /// network regresses, which on a sliver 8–12 px across point along its length from every
     /// corner; here the image's edges decide instead.
-    pub fn corner_quads(&self, image: &GrayImage, covered: &[[[f64; 2]; 4]]) -> Outlined {
+    pub fn corner_quads(&self, image: &GrayImage, covered: &[Quad]) -> Outlined {
         let grown = grown(covered);
         let mut corners: Vec<Corner> = Vec::new();
         for (maps, scale) in self.maps.iter().filter(|(_, s)| *s <= 2.0) {
             for c in maps.corners(CORNER_QUAD_SCORE as f32, *scale) {
                 let known = corners.iter().any(|o| distance(o.at, c.at) < 2.0);
-                if !known && !grown.iter().any(|q| inside_polygon(q, c.at)) {
+                if !known && !grown.iter().any(|q| q.encloses(c.at)) {
                     corners.push(c);
                 }
             }
@@ -450,18 +451,18 @@ impl Search {
                             continue;
                         }
                         let mut ids = [a, b, c, d];
-                        let centre = quad_centre(&ids.map(|i| corners[i].at));
+                        let centre = Quad(ids.map(|i| corners[i].at)).centre();
                         let turn = |i: &usize| {
                             (corners[*i].at[1] - centre[1]).atan2(corners[*i].at[0] - centre[0])
                         };
                         ids.sort_by(|x, y| turn(x).total_cmp(&turn(y)));
-                        let q = ids.map(|i| corners[i].at);
+                        let q = Quad(ids.map(|i| corners[i].at));
                         // Plain convexity, not the outline search's bar on corners flatter
                         // than ~170°: a needle's waist corners near it (167° on dev seed 41
                         // #348).
                         let convex =
                             (0..4).all(|i| cross(q[i], q[(i + 1) % 4], q[(i + 2) % 4]) > 0.0);
-                        if !convex || polygon_area(&q) < 40.0 {
+                        if !convex || q.signed_area() < 40.0 {
                             continue;
                         }
                         fits += 1;
@@ -498,13 +499,9 @@ impl Search {
     /// Where the network sees a marker that no read accounts for: every mask cell at or above
     /// `options.mask` and every corner at or above `options.corner`, on any level, outside the
     /// `covered` quads (grown a fifth), as the image pixels they cover (x0, y0, x1, y1).
-    fn unexplained_spots(
-        &self,
-        covered: &[[[f64; 2]; 4]],
-        options: &TraceOptions,
-    ) -> Vec<[f64; 4]> {
+    fn unexplained_spots(&self, covered: &[Quad], options: &TraceOptions) -> Vec<[f64; 4]> {
         let grown = grown(covered);
-        let unexplained = |p: [f64; 2]| !grown.iter().any(|q| inside_polygon(q, p));
+        let unexplained = |p: [f64; 2]| !grown.iter().any(|q| q.encloses(p));
         let mut spots = Vec::new();
         for (maps, scale) in &self.maps {
             let half = 0.5 * STRIDE as f64 * scale;
@@ -526,7 +523,7 @@ impl Search {
     }
 
     /// How much of the quad the network's mask calls marker, at the level that says most.
-    fn mask_support(&self, q: &[[f64; 2]; 4]) -> f64 {
+    fn mask_support(&self, q: &Quad) -> f64 {
         self.maps
             .iter()
             .map(|(maps, scale)| mask_inside(q, &|p| maps.mask_at(p, *scale)).0)
@@ -536,14 +533,8 @@ impl Search {
 
 /// The quads a fifth larger about their centres: corners stage 1 placed just outside a marker
 /// read, or a blob of its quiet zone's shadow, still count as its.
-fn grown(quads: &[[[f64; 2]; 4]]) -> Vec<[[f64; 2]; 4]> {
-    quads
-        .iter()
-        .map(|q| {
-            let c = quad_centre(q);
-            q.map(|p| [c[0] + 1.2 * (p[0] - c[0]), c[1] + 1.2 * (p[1] - c[1])])
-        })
-        .collect()
+fn grown(quads: &[Quad]) -> Vec<Quad> {
+    quads.iter().map(|q| q.scaled(1.2)).collect()
 }
 
 /// [`Stage1::search`] with a given network.
@@ -730,8 +721,8 @@ pub(crate) fn stage1_for_search_tests() -> Stage1 {
 #[cfg(test)]
 pub(crate) const FAR_SLIVER: &[u8] = include_bytes!("testdata/far-sliver-100cm-65deg.png");
 #[cfg(test)]
-pub(crate) const FAR_SLIVER_TRUTH: [[f64; 2]; 4] =
-    [[97.0, 51.4], [102.4, 58.4], [61.6, 68.8], [58.2, 61.4]];
+pub(crate) const FAR_SLIVER_TRUTH: Quad =
+    Quad([[97.0, 51.4], [102.4, 58.4], [61.6, 68.8], [58.2, 61.4]]);
 
 #[cfg(test)]
 mod tests {
@@ -739,7 +730,7 @@ mod tests {
     use crate::detect::stage1::group::image_from_level;
 
     /// Whether some quad has every corner within `px` of `truth`'s, from any starting corner.
-    fn any_near(quads: &[Proposal], truth: &[[f64; 2]; 4], px: f64) -> bool {
+    fn any_near(quads: &[Proposal], truth: &Quad, px: f64) -> bool {
         quads.iter().any(|p| {
             (0..4).any(|shift| {
                 (0..4).all(|i| {
@@ -779,12 +770,12 @@ mod tests {
     /// across (development seed 16 #78, cut at x 416–544, y 246–374). Its blob, blurred at the
     /// tips, fills under 85 % of its hull.
     const TURNED_SLIVER: &[u8] = include_bytes!("testdata/turned-sliver-80cm-70deg.png");
-    const TURNED_SLIVER_TRUTH: [[f64; 2]; 4] = [
+    const TURNED_SLIVER_TRUTH: Quad = Quad([
         [52.60, 57.38],
         [50.85, 89.35],
         [43.67, 55.00],
         [44.97, 22.02],
-    ];
+    ]);
 
     #[test]
     fn a_sliver_blunted_at_its_tips_is_traced() {

@@ -8,11 +8,12 @@
 
 use super::STRIDE;
 use crate::geometry::inside_polygon;
+use crate::geometry::Quad;
 
 /// A marker as stage 1 sees it: its four ROI corners (in the family's order) and its outline.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MarkerQuad {
-    pub corners: [[f64; 2]; 4],
+    pub corners: Quad,
     pub outline: Vec<[f64; 2]>,
 }
 
@@ -35,19 +36,6 @@ pub struct Targets {
 /// Gaussian bump width in cells: narrow enough that the corners of a 12-px marker (3 cells
 /// apart) stay separate peaks.
 const SIGMA_CELLS: f64 = 0.8;
-
-/// Where the diagonals 0–2 and 1–3 cross (`None` for a degenerate quad).
-pub fn diagonal_crossing(c: &[[f64; 2]; 4]) -> Option<[f64; 2]> {
-    let d1 = [c[2][0] - c[0][0], c[2][1] - c[0][1]];
-    let d2 = [c[3][0] - c[1][0], c[3][1] - c[1][1]];
-    let den = d1[0] * d2[1] - d1[1] * d2[0];
-    if den.abs() < 1e-9 {
-        return None;
-    }
-    let r = [c[1][0] - c[0][0], c[1][1] - c[0][1]];
-    let t = (r[0] * d2[1] - r[1] * d2[0]) / den;
-    Some([c[0][0] + t * d1[0], c[0][1] + t * d1[1]])
-}
 
 /// The cells of a `columns` × `rows` map whose centre lies inside `outline`: a marker's mask.
 pub fn cells_inside(
@@ -77,13 +65,13 @@ pub fn encode(width: usize, height: usize, markers: &[MarkerQuad]) -> Targets {
     };
     let s = STRIDE as f64;
     for m in markers {
-        let Some(centre) = diagonal_crossing(&m.corners) else {
+        let Some(centre) = m.corners.diagonal_crossing() else {
             continue;
         };
         for i in cells_inside(&m.outline, columns, rows) {
             t.mask[i] = 1.0;
         }
-        for corner in m.corners {
+        for corner in m.corners.0 {
             let (gx, gy) = (corner[0] / s, corner[1] / s);
             let (dx, dy) = (centre[0] - corner[0], centre[1] - corner[1]);
             let len = dx.hypot(dy).max(1e-9);
@@ -131,7 +119,7 @@ mod tests {
             96,
             80,
             &[MarkerQuad {
-                corners,
+                corners: Quad(corners),
                 outline: corners.to_vec(),
             }],
         );
@@ -156,13 +144,5 @@ mod tests {
         assert_eq!(t.mask[10 * 24 + 10], 1.0);
         assert_eq!(t.mask[2 * 24 + 2], 0.0);
         assert_eq!(t.regress.iter().filter(|&&r| r > 0.0).count(), 36);
-    }
-
-    #[test]
-    fn the_diagonals_of_a_perspective_quad_cross_off_its_mean() {
-        let c = [[0.0, 0.0], [10.0, 0.0], [8.0, 6.0], [2.0, 6.0]];
-        let x = diagonal_crossing(&c).unwrap();
-        assert!((x[1] - 60.0 / 16.0).abs() < 1e-9, "{x:?}");
-        assert!(x[1] < 3.0 + 1.0);
     }
 }

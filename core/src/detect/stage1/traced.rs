@@ -12,7 +12,8 @@
 use super::edges::{intersection, weighted_line};
 use super::group::same_corners;
 use super::outline::{contrast_range, cross, noise_sigma};
-use crate::geometry::{distance, largest_corner_move, polygon_area};
+use crate::geometry::Quad;
+use crate::geometry::{distance, polygon_area};
 use crate::image::GrayImage;
 
 /// The noisiest image traced, as σ in gray levels: beyond it the dark pixels of noise join into
@@ -107,12 +108,12 @@ pub fn traced_quads_near(
     image: &GrayImage,
     spots: &[[f64; 4]],
     options: &TraceOptions,
-) -> Vec<[[f64; 2]; 4]> {
+) -> Vec<Quad> {
     if spots.is_empty() || noise_sigma(image) > MAX_NOISE {
         // Noise this strong makes half the pixels dark and one blob of the whole image.
         return Vec::new();
     }
-    let mut quads: Vec<([[f64; 2]; 4], f64)> = Vec::new();
+    let mut quads: Vec<(Quad, f64)> = Vec::new();
     // Darker by a share of the whole image's range, not the crop's.
     let range = contrast_range(image);
     for mut region in regions(image.width, image.height, spots) {
@@ -126,7 +127,7 @@ pub fn traced_quads_near(
                 for q in traced.quads {
                     let q = fitted_to_edges(&crop, q).map(|p| [p[0] + x0 as f64, p[1] + y0 as f64]);
                     if !quads.iter().any(|(seen, _)| same_corners(seen, &q)) {
-                        quads.push((q, polygon_area(&q)));
+                        quads.push((q, q.signed_area()));
                     }
                 }
                 for (side, cut_here) in cut.iter_mut().zip(traced.centre_cut) {
@@ -250,7 +251,7 @@ fn grown(region: [u32; 4], cut: [bool; 4], width: u32, height: u32) -> [u32; 4] 
 /// What one trace of an image found.
 struct Traced {
     /// Every whole dark blob's quad, largest first.
-    quads: Vec<[[f64; 2]; 4]>,
+    quads: Vec<Quad>,
     /// The sides (left, top, right, bottom) where a blob over the image's middle runs out of
     /// it: the marker a crop was centred on may lie partly beyond it.
     centre_cut: [bool; 4],
@@ -349,14 +350,14 @@ fn traced_quads(image: &GrayImage, offset: f32, options: &TraceOptions) -> Trace
             flush(outline, span);
         }
     }
-    let mut quads: Vec<([[f64; 2]; 4], f64)> = outlines
+    let mut quads: Vec<(Quad, f64)> = outlines
         .into_iter()
         .filter_map(|points| {
             let hull = convex_hull(points);
             let hull_area = polygon_area(&hull);
             let hull = straightened(hull);
             let (quad, area) = largest_quad(&hull)?;
-            let short = sides(&quad).into_iter().fold(f64::MAX, f64::min);
+            let short = quad.shortest_side();
             (area >= options.min_area
                 && area >= options.fit * hull_area
                 && short >= options.min_side
@@ -493,26 +494,14 @@ fn blobs(runs: &[Run]) -> Vec<usize> {
 
 /// Whether a square seen by a camera can have `quad`'s opposite sides (see
 /// [`MAX_OPPOSITE_RATIO`]).
-fn seen_by_a_camera(quad: &[[f64; 2]; 4]) -> bool {
-    let longest = sides(quad).into_iter().fold(0.0, f64::max);
+fn seen_by_a_camera(quad: &Quad) -> bool {
+    let longest = quad.longest_side();
     let bound = if longest >= CLOSE_LENGTH {
         MAX_OPPOSITE_RATIO_CLOSE
     } else {
         MAX_OPPOSITE_RATIO
     };
-    opposite_sides_ratio(quad) <= bound
-}
-
-/// The larger of the two ratios longer / shorter between opposite sides.
-fn opposite_sides_ratio(q: &[[f64; 2]; 4]) -> f64 {
-    let side = sides(q).map(|s| s.max(1e-9));
-    let ratio = |a: f64, b: f64| a.max(b) / a.min(b);
-    ratio(side[0], side[2]).max(ratio(side[1], side[3]))
-}
-
-/// The lengths of a quad's sides, side i running from corner i to corner i + 1.
-fn sides(q: &[[f64; 2]; 4]) -> [f64; 4] {
-    std::array::from_fn(|i| distance(q[i], q[(i + 1) % 4]))
+    quad.opposite_sides_ratio() <= bound
 }
 
 /// The convex hull, clockwise in the image (y down), without collinear points (Andrew's
@@ -551,7 +540,7 @@ fn convex_hull(mut points: Vec<[f64; 2]>) -> Vec<[f64; 2]> {
 /// found at up to 32 points of its middle 70 %, as the strongest light-to-dark step into the quad
 /// within 3 px, and a line fitted through them; a side with too few clear steps stays as it is,
 /// and so does a quad whose corners would move by more than 15 % of its longest side.
-fn fitted_to_edges(image: &GrayImage, quad: [[f64; 2]; 4]) -> [[f64; 2]; 4] {
+fn fitted_to_edges(image: &GrayImage, quad: Quad) -> Quad {
     let mut lines: [Option<([f64; 2], [f64; 2])>; 4] = [None; 4];
     for (i, line) in lines.iter_mut().enumerate() {
         let (p, q) = (quad[i], quad[(i + 1) % 4]);
@@ -597,9 +586,9 @@ fn fitted_to_edges(image: &GrayImage, quad: [[f64; 2]; 4]) -> [[f64; 2]; 4] {
             }
         }
     }
-    let longest = sides(&quad).into_iter().fold(0.0, f64::max);
-    let moved = largest_corner_move(&out, &quad);
-    if moved > 0.15 * longest || polygon_area(&out) <= 0.0 {
+    let longest = quad.longest_side();
+    let moved = out.largest_corner_move(&quad);
+    if moved > 0.15 * longest || out.signed_area() <= 0.0 {
         return quad;
     }
     out
@@ -632,7 +621,7 @@ fn straightened(mut hull: Vec<[f64; 2]>) -> Vec<[f64; 2]> {
 /// its area. For each diagonal i–k the best third vertex on either side maximises a triangle,
 /// and along a convex chain that maximum moves forward as k does, so each side is a pointer that
 /// only advances: O(n²) rather than O(n⁴).
-fn largest_quad(hull: &[[f64; 2]]) -> Option<([[f64; 2]; 4], f64)> {
+fn largest_quad(hull: &[[f64; 2]]) -> Option<(Quad, f64)> {
     let n = hull.len();
     if n < 4 {
         return None;
@@ -657,13 +646,12 @@ fn largest_quad(hull: &[[f64; 2]]) -> Option<([[f64; 2]; 4], f64)> {
         }
     }
     let [a, b, c, d] = best.1;
-    Some(([at(a), at(b), at(c), at(d)], best.0))
+    Some((Quad([at(a), at(b), at(c), at(d)]), best.0))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::inside_polygon;
 
     /// `fill` inside the quad (sampled 4 × 4 per pixel), `ground` elsewhere.
     fn draw(quads: &[[[f64; 2]; 4]], ground: u8, fill: u8) -> GrayImage {
@@ -677,7 +665,7 @@ mod tests {
                             x as f64 - 0.375 + 0.25 * sx as f64,
                             y as f64 - 0.375 + 0.25 * sy as f64,
                         ];
-                        hits += quads.iter().any(|q| inside_polygon(q, p)) as i32;
+                        hits += quads.iter().any(|&q| Quad(q).encloses(p)) as i32;
                     }
                 }
                 let v = ground as f64 + (fill as f64 - ground as f64) * hits as f64 / 16.0;
@@ -687,7 +675,7 @@ mod tests {
         image
     }
 
-    fn matches(found: &[[f64; 2]; 4], truth: &[[f64; 2]; 4], tolerance: f64) -> bool {
+    fn matches(found: &Quad, truth: &[[f64; 2]; 4], tolerance: f64) -> bool {
         (0..4).any(|k| (0..4).all(|i| distance(found[(i + k) % 4], truth[i]) < tolerance))
     }
 
@@ -700,7 +688,7 @@ mod tests {
         let quads = traced_quads(&image, 20.0, &TraceOptions::default()).quads;
         let best = quads.first().expect("the sliver is traced");
         assert!(matches(best, &SLIVER, 1.5), "{best:?}");
-        assert!(polygon_area(best) > 0.0, "clockwise in the image");
+        assert!(best.signed_area() > 0.0, "clockwise in the image");
     }
 
     #[test]
@@ -806,7 +794,7 @@ mod tests {
         let image = draw(&[SLIVER], 210, 30);
         // The tip at (30, 50) traced 5 px short, as blur leaves it on a steep view, and the
         // other corners half a pixel off.
-        let traced = [[35.0, 49.9], [130.4, 40.3], [131.2, 51.6], [31.8, 61.5]];
+        let traced = Quad([[35.0, 49.9], [130.4, 40.3], [131.2, 51.6], [31.8, 61.5]]);
         let fitted = fitted_to_edges(&image, traced);
         assert!(matches(&fitted, &SLIVER, 1.5), "{fitted:?}");
         // With nothing to fit to, a quad stays as it is.
@@ -874,6 +862,6 @@ mod tests {
         assert_eq!(hull.len(), 4, "{hull:?}");
         let (quad, area) = largest_quad(&hull).unwrap();
         assert!((area - 100.0).abs() < 1e-9);
-        assert!(polygon_area(&quad) > 0.0);
+        assert!(quad.signed_area() > 0.0);
     }
 }

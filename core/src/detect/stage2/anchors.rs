@@ -12,6 +12,7 @@
 //! lets the model train on two CPU cores. (Training quads with a_i near 0.25 on both sides shrink the
 //! marker to 0.5 of the patch: 1.6 anchors per pitch for 10 × 10, 2.0 for 8 × 8.)
 
+use crate::geometry::Quad;
 use crate::geometry::{inside_polygon, squared_distance};
 use crate::synth::KeypointTruth;
 
@@ -70,12 +71,12 @@ impl PatchSpec {
         [(col as f64 + 0.5) * s - 0.5, (row as f64 + 0.5) * s - 0.5]
     }
     /// Where the ROI points go in the patch: TL, TR, BR, BL of the template square.
-    pub fn template_corners(&self) -> [[f64; 2]; 4] {
+    pub fn template_corners(&self) -> Quad {
         let (lo, hi) = (
             self.margin * self.size as f64,
             (1.0 - self.margin) * self.size as f64,
         );
-        [[lo, lo], [hi, lo], [hi, hi], [lo, hi]]
+        Quad([[lo, lo], [hi, lo], [hi, hi], [lo, hi]])
     }
     /// Centres of the template head's 2 × 2 anchors, in the order TL, TR, BR, BL.
     fn quadrant_centres(&self) -> [[f64; 2]; 4] {
@@ -168,7 +169,7 @@ pub fn encode(
 /// The 4 ROI points reordered by the patch quadrant they lie in (TL, TR, BR, BL): the cyclic
 /// shift closest to the template square, so a marker turned by 90° in the patch still gives each
 /// template anchor its own corner.
-pub fn patch_order(spec: &PatchSpec, roi: &[[f64; 2]]) -> [[f64; 2]; 4] {
+pub fn patch_order(spec: &PatchSpec, roi: &[[f64; 2]]) -> Quad {
     let t = spec.template_corners();
     let cost = |shift: usize| -> f64 {
         (0..4)
@@ -181,7 +182,7 @@ pub fn patch_order(spec: &PatchSpec, roi: &[[f64; 2]]) -> [[f64; 2]; 4] {
     let best = (0..4)
         .min_by(|&a, &b| cost(a).total_cmp(&cost(b)))
         .unwrap_or(0);
-    std::array::from_fn(|j| roi[(j + best) % 4])
+    Quad(std::array::from_fn(|j| roi[(j + best) % 4]))
 }
 
 /// Per-anchor network outputs of one patch, as plain numbers.
@@ -212,15 +213,15 @@ impl RawOutputs {
     }
 
     /// The template head's corners in patch pixels, TL, TR, BR, BL.
-    pub fn template_corners(&self, spec: &PatchSpec) -> [[f64; 2]; 4] {
+    pub fn template_corners(&self, spec: &PatchSpec) -> Quad {
         let q = spec.quadrant_centres();
         let size = spec.size as f64;
-        std::array::from_fn(|j| {
+        Quad(std::array::from_fn(|j| {
             [
                 q[j][0] + self.template[j][0] as f64 * TEMPLATE_SCALE * size,
                 q[j][1] + self.template[j][1] as f64 * TEMPLATE_SCALE * size,
             ]
-        })
+        }))
     }
 }
 

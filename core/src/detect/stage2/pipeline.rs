@@ -11,7 +11,8 @@ use super::normalise_patch;
 use crate::detect::refine::{refine_marker, Lens, RefineMode, RefineReport, TemplateCache};
 use crate::detect::{DetectedKeypoint, Scores};
 use crate::family::{Assignment, Decoded, Family};
-use crate::geometry::{largest_corner_move, warp_bilinear, Camera, Homography};
+use crate::geometry::Quad;
+use crate::geometry::{warp_bilinear, Camera, Homography};
 use crate::image::GrayImage;
 use crate::pose::{covariance, marker_plane_points, solve_planar, PnpSolution, PointNoise};
 use burn::tensor::activation::softmax;
@@ -36,7 +37,7 @@ const RETRY_ROUNDS: usize = 3;
 pub(super) const MAX_RETRIED_ROIS: usize = 6;
 
 /// A patch's read: the marker, or where it does not decode, the ROI its keypoints place.
-type Readout = Result<Stage2Result, Option<[[f64; 2]; 4]>>;
+type Readout = Result<Stage2Result, Option<Quad>>;
 
 /// The network's outputs on one image's quads, by weights and quad, kept while the families of
 /// a detection read the same proposals. Families of one layout can be given one model (a user's
@@ -49,7 +50,7 @@ pub(crate) struct PassMemo {
 }
 
 impl PassMemo {
-    fn key(weights: u64, roi: &[[f64; 2]; 4]) -> (u64, [u64; 8]) {
+    fn key(weights: u64, roi: &Quad) -> (u64, [u64; 8]) {
         (
             weights,
             std::array::from_fn(|k| roi[k / 2][k % 2].to_bits()),
@@ -102,7 +103,7 @@ pub struct Stage2Result {
     pub corrected_errors: usize,
     pub fixed_mismatches: usize,
     /// The family's ROI points in the image, canonical order, from all keypoints.
-    pub corners: [[f64; 2]; 4],
+    pub corners: Quad,
     pub keypoints: Vec<DetectedKeypoint>,
     /// Template keypoints with no detection matched to them.
     pub missing: usize,
@@ -209,14 +210,14 @@ impl Stage2 {
     }
 
     /// The patch a ROI (the family's ROI points 0–3 in the image, in order) warps to.
-    pub fn warp(&self, image: &GrayImage, roi: &[[f64; 2]; 4]) -> Option<(GrayImage, Homography)> {
+    pub fn warp(&self, image: &GrayImage, roi: &Quad) -> Option<(GrayImage, Homography)> {
         let to_image = self.to_image(roi)?;
         Some((self.warp_by(image, &to_image), to_image))
     }
 
     /// The map from patch pixels to the image that warps `roi` to the patch.
-    fn to_image(&self, roi: &[[f64; 2]; 4]) -> Option<Homography> {
-        Homography::from_points(&self.spec.template_corners(), roi).ok()
+    fn to_image(&self, roi: &Quad) -> Option<Homography> {
+        Homography::from_points(&self.spec.template_corners()[..], &roi[..]).ok()
     }
 
     fn warp_by(&self, image: &GrayImage, to_image: &Homography) -> GrayImage {
@@ -230,7 +231,7 @@ impl Stage2 {
     pub fn detect(
         &self,
         image: &GrayImage,
-        roi: &[[f64; 2]; 4],
+        roi: &Quad,
         options: &ReadOptions,
         camera: Option<(&Camera, f64)>,
     ) -> Option<Stage2Result> {
@@ -249,7 +250,7 @@ impl Stage2 {
     pub fn first_passes(
         &self,
         image: &GrayImage,
-        rois: &[[[f64; 2]; 4]],
+        rois: &[Quad],
         options: &ReadOptions,
     ) -> Vec<Option<Stage2Result>> {
         self.first_passes_counted(image, rois, options).0
@@ -259,7 +260,7 @@ impl Stage2 {
     pub fn first_passes_counted(
         &self,
         image: &GrayImage,
-        rois: &[[[f64; 2]; 4]],
+        rois: &[Quad],
         options: &ReadOptions,
     ) -> (Vec<Option<Stage2Result>>, usize) {
         self.first_passes_shared(image, rois, options, &mut PassMemo::default())
@@ -271,7 +272,7 @@ impl Stage2 {
     pub(crate) fn first_passes_shared(
         &self,
         image: &GrayImage,
-        rois: &[[[f64; 2]; 4]],
+        rois: &[Quad],
         options: &ReadOptions,
         memo: &mut PassMemo,
     ) -> (Vec<Option<Stage2Result>>, usize) {
@@ -299,7 +300,7 @@ impl Stage2 {
                         })
                     }
                     Err(Some(roi))
-                        if largest_corner_move(&roi, last) >= MIN_RETRY_MOVE_PX
+                        if roi.largest_corner_move(last) >= MIN_RETRY_MOVE_PX
                             && (round > 0 || still_pending.len() < options.retried_rois) =>
                     {
                         still_pending.push(i);
@@ -319,7 +320,7 @@ impl Stage2 {
     fn read_batch(
         &self,
         image: &GrayImage,
-        rois: &[[[f64; 2]; 4]],
+        rois: &[Quad],
         memo: &mut PassMemo,
     ) -> (Vec<Readout>, usize) {
         let to_images: Vec<Option<Homography>> = rois.iter().map(|r| self.to_image(r)).collect();
@@ -406,7 +407,7 @@ impl Stage2 {
                     [k.x, k.y] = lens.to_image(h.apply(kps[k.index].pos));
                 }
                 let roi = self.family.roi_points();
-                result.corners = std::array::from_fn(|j| lens.to_image(h.apply(roi[j])));
+                result.corners = Quad(std::array::from_fn(|j| lens.to_image(h.apply(roi[j]))));
             }
         }
         // A read from a failed first pass's keypoints stands only where the alignment with
@@ -432,7 +433,7 @@ impl Stage2 {
         Some(result)
     }
 
-    fn pass(&self, image: &GrayImage, roi: &[[f64; 2]; 4]) -> Option<Stage2Result> {
+    fn pass(&self, image: &GrayImage, roi: &Quad) -> Option<Stage2Result> {
         (self
             .read_batch(image, std::slice::from_ref(roi), &mut PassMemo::default())
             .0)
@@ -450,9 +451,11 @@ impl Stage2 {
             let enough = 2 * reading.sorted.matched() >= family.regressed_keypoints().len();
             let roi = family.roi_points();
             let to_patch = &reading.sorted.to_patch;
-            return Err(
-                enough.then(|| std::array::from_fn(|j| to_image.apply(to_patch.apply(roi[j]))))
-            );
+            return Err(enough.then(|| {
+                Quad(std::array::from_fn(|j| {
+                    to_image.apply(to_patch.apply(roi[j]))
+                }))
+            }));
         };
         self.result_of(&reading, decoded, to_image).ok_or(None)
     }
@@ -491,7 +494,7 @@ impl Stage2 {
         let pixels: Vec<[f64; 2]> = keypoints.iter().map(|k| [k.x, k.y]).collect();
         let to_pixels = Homography::from_points(&canonical, &pixels).ok()?;
         let roi = family.roi_points();
-        let corners = std::array::from_fn(|j| to_pixels.apply(roi[j]));
+        let corners = Quad(std::array::from_fn(|j| to_pixels.apply(roi[j])));
         Some(Stage2Result {
             id: decoded.id,
             rotation_deg: rotation.angle_deg,

@@ -7,6 +7,7 @@ use super::{shipped_model, shipped_model_for};
 use crate::builtin;
 use crate::detect::plain_net::largest_difference;
 use crate::detect::refine::RefineMode;
+use crate::geometry::Quad;
 use crate::pose::Pose;
 use crate::synth::{synthesize, Mode, SynthConfig};
 
@@ -140,10 +141,10 @@ fn decodes_noisy_markers_of(family: &crate::Family) {
         let side = (truth.roi[1][0] - truth.roi[0][0]).hypot(truth.roi[1][1] - truth.roi[0][1]);
         let jitter = [[0.04, -0.03], [-0.02, 0.04], [0.03, 0.02], [-0.04, -0.01]];
         let start = seed as usize % 4;
-        let roi: [[f64; 2]; 4] = std::array::from_fn(|j| {
+        let roi: Quad = Quad(std::array::from_fn(|j| {
             let p = truth.roi[(j + start) % 4];
             [p[0] + jitter[j][0] * side, p[1] + jitter[j][1] * side]
-        });
+        }));
         let mut errors = Vec::new();
         for refine in [RefineMode::None, RefineMode::Full] {
             let options = ReadOptions {
@@ -299,18 +300,18 @@ fn a_roi_off_at_a_steep_markers_corners_reads_from_the_keypoints_found() {
 
 /// A ROI off at each corner by a tenth of the marker's longest side, each its own way (`seed`
 /// turns the directions).
-fn pushed_roi(r: &[[f64; 2]], seed: u64) -> [[f64; 2]; 4] {
+fn pushed_roi(r: &[[f64; 2]], seed: u64) -> Quad {
     let side = (0..4)
         .map(|j| (r[(j + 1) % 4][0] - r[j][0]).hypot(r[(j + 1) % 4][1] - r[j][1]))
         .fold(0.0, f64::max);
     let push = side / 10.0;
     let angle = |j: usize| (seed as f64 * 1.7 + j as f64 * 2.3) % std::f64::consts::TAU;
-    std::array::from_fn(|j| {
+    Quad(std::array::from_fn(|j| {
         [
             r[j][0] + push * angle(j).cos(),
             r[j][1] + push * angle(j).sin(),
         ]
-    })
+    }))
 }
 
 /// The reads from the keypoints are bounded per batch: a cluttered scene sends dozens of ROIs

@@ -5,6 +5,7 @@
 
 use super::anchors::Found;
 use crate::family::{Assignment, Family};
+use crate::geometry::Quad;
 use crate::geometry::{squared_distance, Homography};
 
 /// Found keypoints in template order.
@@ -29,13 +30,9 @@ const ROUNDS: usize = 4;
 /// Places the template by `corners` (where the family's 4 ROI points are in the patch, in the
 /// patch's TL, TR, BR, BL order), then matches each regressed keypoint to the nearest unused
 /// found keypoint within half its cell pitch. None when fewer than 4 match.
-pub fn sort_to_template(
-    family: &Family,
-    found: &[Found],
-    corners: &[[f64; 2]; 4],
-) -> Option<Sorted> {
+pub fn sort_to_template(family: &Family, found: &[Found], corners: &Quad) -> Option<Sorted> {
     let roi = &family.roi_points()[..4];
-    let mut h = Homography::from_points(roi, corners).ok()?;
+    let mut h = Homography::from_points(roi, &corners[..]).ok()?;
     let regressed = family.regressed_keypoints();
     let kps = family.keypoints();
     let mut best: Option<Sorted> = None;

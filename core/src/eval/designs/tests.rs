@@ -53,7 +53,7 @@ impl BenchDetector for Oracle {
                     pose.rotation = std::array::from_fn(|i| std::array::from_fn(|j| r[(i, j)]));
                     pose
                 });
-                Detection::plain(m.id, [m.roi[0], m.roi[1], m.roi[2], m.roi[3]], pose)
+                Detection::plain(m.id, Quad([m.roi[0], m.roi[1], m.roi[2], m.roi[3]]), pose)
             })
             .collect()
     }

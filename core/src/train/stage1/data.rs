@@ -9,6 +9,7 @@
 use crate::detect::stage1::targets::{cells_inside, encode, MarkerQuad, Targets};
 use crate::detect::stage2::normalise_patch;
 use crate::family::Family;
+use crate::geometry::Quad;
 use crate::image::GrayImage;
 use crate::synth::{synthesize, Mode, SynthConfig};
 use rand::{Rng, SeedableRng};
@@ -25,7 +26,7 @@ pub struct SceneSample {
     /// Per-cell weight of the mask loss (see [`mask_weights`]).
     pub mask_weight: Vec<f32>,
     /// The markers' ROI corners, for validation.
-    pub quads: Vec<[[f64; 2]; 4]>,
+    pub quads: Vec<Quad>,
 }
 
 /// The scene of sample `seed`.
@@ -68,7 +69,7 @@ pub fn make_sample(families: &[Family], seed: u64) -> Result<SceneSample, String
         .markers
         .iter()
         .map(|m| MarkerQuad {
-            corners: [m.roi[0], m.roi[1], m.roi[2], m.roi[3]],
+            corners: Quad([m.roi[0], m.roi[1], m.roi[2], m.roi[3]]),
             outline: m.mask.clone(),
         })
         .collect();

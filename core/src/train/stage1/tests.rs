@@ -40,7 +40,7 @@ fn a_small_markers_mask_weighs_more_than_a_large_ones() {
     let square = |x: f64, y: f64, side: f64| {
         let corners = [[x, y], [x + side, y], [x + side, y + side], [x, y + side]];
         MarkerQuad {
-            corners,
+            corners: crate::geometry::Quad(corners),
             outline: corners.to_vec(),
         }
     };

@@ -4,6 +4,7 @@
 use super::data::{make_sample, SceneSample};
 use crate::detect::stage1::group::Proposal;
 use crate::family::Family;
+use crate::geometry::Quad;
 use crate::synth::image_seed;
 use serde::{Deserialize, Serialize};
 
@@ -36,7 +37,7 @@ pub fn validation_set(families: &[Family], size: usize) -> Result<Vec<SceneSampl
 
 /// How far a proposal's corner may be from the truth and still count: stage 2 reads a ROI that
 /// is off by a tenth of the side (it is trained on ROIs off by up to a quarter).
-pub fn match_tolerance(quad: &[[f64; 2]; 4]) -> f64 {
+pub fn match_tolerance(quad: &Quad) -> f64 {
     let side = (0..4)
         .map(|i| {
             let (a, b) = (quad[i], quad[(i + 1) % 4]);
@@ -48,7 +49,7 @@ pub fn match_tolerance(quad: &[[f64; 2]; 4]) -> f64 {
 
 /// The corner errors of `p` against `truth` in the best cyclic correspondence, if every corner is
 /// within the tolerance.
-pub fn matches(p: &Proposal, truth: &[[f64; 2]; 4]) -> Option<[f64; 4]> {
+pub fn matches(p: &Proposal, truth: &Quad) -> Option<[f64; 4]> {
     let tolerance = match_tolerance(truth);
     (0..4)
         .map(|shift| {

@@ -9,6 +9,7 @@
 use crate::detect::stage2::anchors::{encode, PatchSpec, Targets};
 use crate::detect::stage2::normalise_patch;
 use crate::family::Family;
+use crate::geometry::Quad;
 use crate::geometry::{bounding_box, warp_bilinear, Homography};
 use crate::image::GrayImage;
 use crate::synth::{synthesize, KeypointTruth, MarkerTruth, Mode, SynthConfig};
@@ -131,13 +132,13 @@ fn camera_cut(
     }
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5EED_0FC0);
     let sigma = rng.random_range(0.0..CUT_ROI_ERROR_PX);
-    let roi: [[f64; 2]; 4] = std::array::from_fn(|i| {
+    let roi = Quad(std::array::from_fn(|i| {
         let [x, y] = truth.roi[i];
         // A sum of uniforms is close enough to a normal error here.
         let mut off = || (0..3).map(|_| rng.random_range(-1.0..1.0)).sum::<f64>() * sigma;
         [x + off(), y + off()]
-    });
-    let Ok(to_image) = Homography::from_points(&spec.template_corners(), &roi) else {
+    }));
+    let Ok(to_image) = Homography::from_points(&spec.template_corners()[..], &roi[..]) else {
         return Ok(None);
     };
     let Some(to_patch) = to_image.inverse() else {

@@ -11,6 +11,7 @@ use crate::detect::stage2::model_file;
 use crate::detect::stage2::net::{macs, NetConfig, Stage2Net};
 use crate::detect::stage2::pipeline::raw_outputs;
 use crate::family::Family;
+use crate::geometry::Quad;
 use burn::module::Module;
 use burn::tensor::{Device, Tensor};
 use data::{make_sample, PatchSample, DEFAULT_CAMERA_SHARE};
@@ -197,7 +198,7 @@ fn patch_picture(
             .map(|r| r.found.iter().map(|f| (f.pos, f.category)).collect())
             .unwrap_or_default(),
     };
-    let outlines = match (net, <[[f64; 2]; 4]>::try_from(sample.truth.roi.as_slice())) {
+    let outlines = match (net, <Quad>::try_from(sample.truth.roi.as_slice())) {
         (None, Ok(roi)) => vec![roi],
         _ => Vec::new(),
     };
