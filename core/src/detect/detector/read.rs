@@ -87,11 +87,7 @@ impl FamilyReader {
     pub(super) fn rms_pitch(&self, marker: &Stage2Result) -> Option<f64> {
         let pose = marker.pose.as_ref()?;
         let pitch = self.family.keypoint_pitch() / self.family.roi_side();
-        let c = &marker.corners;
-        let side = (0..4)
-            .map(|i| (c[i][0] - c[(i + 1) % 4][0]).hypot(c[i][1] - c[(i + 1) % 4][1]))
-            .sum::<f64>()
-            / 4.0;
+        let side = marker.corners.sides().iter().sum::<f64>() / 4.0;
         Some(pose.rms_px / (pitch * side).max(f64::MIN_POSITIVE))
     }
 

@@ -9,7 +9,7 @@
 //! that the detector can select again without quads stage 2 could not read ([`select`]).
 
 use super::STRIDE;
-use crate::geometry::Quad;
+use crate::geometry::{distance, length, Quad};
 
 /// A corner found on the heat map, in image pixels.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -135,7 +135,7 @@ impl Maps {
                 let s = STRIDE as f64;
                 let [ox, oy] = self.offset[i];
                 let [dx, dy] = self.direction[i];
-                let len = (dx as f64).hypot(dy as f64).max(1e-9);
+                let len = length([dx as f64, dy as f64]).max(1e-9);
                 out.push(Corner {
                     at: [
                         image_from_level((cx as f64 + 0.5 + ox as f64) * s, scale),
@@ -243,7 +243,7 @@ fn alignment(q: &Quad, directions: [[f64; 2]; 4]) -> f64 {
     (0..4)
         .map(|i| {
             let to = sub(x, q[i]);
-            let len = to[0].hypot(to[1]).max(1e-9);
+            let len = length(to).max(1e-9);
             dot(directions[i], [to[0] / len, to[1] / len])
         })
         .sum::<f64>()
@@ -419,12 +419,7 @@ pub fn same_quad(a: &Proposal, b: &Proposal) -> bool {
 /// [`same_quad`] for bare corners.
 pub fn same_corners(a: &Quad, b: &Quad) -> bool {
     let tolerance = (0.2 * a.width().min(b.width())).min(MAX_SAME_OFFSET);
-    (0..4).any(|shift| {
-        (0..4).all(|i| {
-            let d = sub(a[(i + shift) % 4], b[i]);
-            d[0].hypot(d[1]) < tolerance
-        })
-    })
+    (0..4).any(|shift| (0..4).all(|i| distance(a[(i + shift) % 4], b[i]) < tolerance))
 }
 
 /// The farthest apart, in pixels, two quads' corners may be and still mark the same quad,

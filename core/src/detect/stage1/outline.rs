@@ -12,7 +12,7 @@
 //! quad of clutter costs one read, not a wrong ID.
 
 use super::group::{Candidate, Corner, Proposal};
-use crate::geometry::Quad;
+use crate::geometry::{distance, Quad};
 use crate::image::GrayImage;
 
 /// Limits of the outline search.
@@ -119,7 +119,7 @@ pub(super) fn noise_sigma(image: &GrayImage) -> f32 {
 /// finds its own offset (up to a tenth of the side, at least 2 px) and the weakest third counts.
 fn side_steps(image: &GrayImage, a: [f64; 2], b: [f64; 2], contrast: f32) -> (f32, f32) {
     let (dx, dy) = ((b[0] - a[0]) as f32, (b[1] - a[1]) as f32);
-    let len = dx.hypot(dy);
+    let len = (dx * dx + dy * dy).sqrt();
     let (ux, uy) = (dx / len, dy / len);
     // Right-hand normal in image coordinates (y down): the inside of a clockwise quad.
     let (nx, ny) = (-uy, ux);
@@ -178,10 +178,7 @@ fn convex_turn(q: &Quad) -> Option<f64> {
     for i in 0..4 {
         let (p, c, n) = (q[(i + 3) % 4], q[i], q[(i + 1) % 4]);
         let turn = cross(p, c, n);
-        let (l1, l2) = (
-            (c[0] - p[0]).hypot(c[1] - p[1]),
-            (n[0] - c[0]).hypot(n[1] - c[1]),
-        );
+        let (l1, l2) = (distance(p, c), distance(c, n));
         // |sin| of the turn: a corner under ~10° off straight is not a corner.
         if (turn / (l1 * l2)).abs() < 0.17 {
             return None;
@@ -220,7 +217,7 @@ pub fn outline_candidates(
     for i in 0..n {
         for j in i + 1..n {
             let (a, b) = (corners[i].at, corners[j].at);
-            if (b[0] - a[0]).hypot(b[1] - a[1]) < options.min_side {
+            if distance(a, b) < options.min_side {
                 continue;
             }
             let (right, left) = side_steps(image, a, b, contrast);

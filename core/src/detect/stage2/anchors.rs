@@ -12,8 +12,7 @@
 //! lets the model train on two CPU cores. (Training quads with a_i near 0.25 on both sides shrink the
 //! marker to 0.5 of the patch: 1.6 anchors per pitch for 10 × 10, 2.0 for 8 × 8.)
 
-use crate::geometry::Quad;
-use crate::geometry::{inside_polygon, squared_distance};
+use crate::geometry::{distance, inside_polygon, length, squared_distance, Quad};
 use crate::synth::KeypointTruth;
 
 /// Anchor class of background; category `c` is class `c + 1`.
@@ -135,7 +134,7 @@ pub fn encode(
         let a = spec.anchor(i);
         let nearest = visible
             .iter()
-            .map(|k| (k, (k.x - a[0]).hypot(k.y - a[1])))
+            .map(|k| (k, length([k.x - a[0], k.y - a[1]])))
             .min_by(|x, y| x.1.total_cmp(&y.1));
         if let Some((k, d)) = nearest {
             if d < pos_r {
@@ -171,14 +170,7 @@ pub fn encode(
 /// template anchor its own corner.
 pub fn patch_order(spec: &PatchSpec, roi: &[[f64; 2]]) -> Quad {
     let t = spec.template_corners();
-    let cost = |shift: usize| -> f64 {
-        (0..4)
-            .map(|j| {
-                let p = roi[(j + shift) % 4];
-                (p[0] - t[j][0]).hypot(p[1] - t[j][1])
-            })
-            .sum()
-    };
+    let cost = |shift: usize| -> f64 { (0..4).map(|j| distance(roi[(j + shift) % 4], t[j])).sum() };
     let best = (0..4)
         .min_by(|&a, &b| cost(a).total_cmp(&cost(b)))
         .unwrap_or(0);
