@@ -140,10 +140,10 @@ impl PlainNet {
                 // SAFETY: the CPU has both features the function is compiled for.
                 unsafe { self.images_avx2(input, n, size, workspace, &mut out) };
             } else {
-                self.images::<false>(input, n, size, workspace, &mut out);
+                self.images::<false, PORTABLE_LANES>(input, n, size, workspace, &mut out);
             }
             #[cfg(not(target_arch = "x86_64"))]
-            self.images::<false>(input, n, size, workspace, &mut out);
+            self.images::<false, PORTABLE_LANES>(input, n, size, workspace, &mut out);
             // A huge image's buffers are not kept for the next one.
             for buffer in workspace.iter_mut() {
                 if buffer.len() > KEPT_WORKSPACE {
@@ -164,14 +164,14 @@ impl PlainNet {
         workspace: &mut [Vec<f32>; 3],
         out: &mut Vec<f32>,
     ) {
-        self.images::<true>(input, n, size, workspace, out)
+        self.images::<true, AVX_LANES>(input, n, size, workspace, out)
     }
 
     /// The layers on each of `n` images into `out`. `FMA`: multiply-adds as fused instructions
     /// (only where the CPU has them: without, a fused multiply-add is a call into the maths
     /// library).
     #[inline(always)]
-    fn images<const FMA: bool>(
+    fn images<const FMA: bool, const L: usize>(
         &self,
         input: &[f32],
         n: usize,
@@ -190,8 +190,8 @@ impl PlainNet {
                     &mut to[..layer.outputs() * lh * lw],
                 );
                 match layer {
-                    Layer::Spatial(layer) => spatial::<FMA>(layer, src, h, w, dst, scratch),
-                    Layer::Pointwise(layer) => pointwise::<FMA>(layer, src, h * w, dst),
+                    Layer::Spatial(layer) => spatial::<FMA, L>(layer, src, h, w, dst, scratch),
+                    Layer::Pointwise(layer) => pointwise::<FMA, L>(layer, src, h * w, dst),
                 }
                 std::mem::swap(from, to);
                 (h, w) = (lh, lw);
@@ -316,12 +316,17 @@ fn madd<const FMA: bool>(a: f32, b: f32, c: f32) -> f32 {
     }
 }
 
-/// Output pixels per block of a row: two AVX registers, summed over all taps before stored.
-const LANES: usize = 16;
+/// Output pixels per block of a row, summed over all taps before stored: two AVX registers.
+const AVX_LANES: usize = 16;
+/// The same where vectors hold four floats (x86-64 without AVX2, WebAssembly's SIMD): two
+/// vectors, so that a 3 × 3 layer's sums and its nine weights fit the sixteen registers, and a
+/// 1 × 1 layer's [`OUTPUT_BLOCK`] channels of sums take eight. Sixteen pixels there spilled
+/// the sums to memory at every tap (BENCHMARKS.md, "Real photographs").
+const PORTABLE_LANES: usize = 8;
 
 /// A [`Spatial`] layer on `planes` (inputs × h × w) into `out` (outputs × oh × ow).
 #[inline(always)]
-fn spatial<const FMA: bool>(
+fn spatial<const FMA: bool, const L: usize>(
     layer: &Spatial,
     planes: &[f32],
     h: usize,
@@ -375,20 +380,20 @@ fn spatial<const FMA: bool>(
                     let k: &[f32; 9] = weights[at..at + 9].try_into().expect("9 taps");
                     let (first, last) = (ci == 0, ci + 1 == group_inputs);
                     let mut x = 0;
-                    while x + LANES <= ow {
-                        let block = &mut dst[x..x + LANES];
-                        let mut acc = [bias[o]; LANES];
+                    while x + L <= ow {
+                        let block = &mut dst[x..x + L];
+                        let mut acc = [bias[o]; L];
                         if !first {
                             acc.copy_from_slice(block);
                         }
                         for (tap, &wt) in taps.iter().zip(k) {
-                            let src: &[f32; LANES] = tap[x..x + LANES].try_into().expect("a block");
+                            let src: &[f32; L] = tap[x..x + L].try_into().expect("a block");
                             for (a, &v) in acc.iter_mut().zip(src) {
                                 *a = madd::<FMA>(wt, v, *a);
                             }
                         }
                         store(block, &acc, *relu && last);
-                        x += LANES;
+                        x += L;
                     }
                     for x in x..ow {
                         let mut acc = if first { bias[o] } else { dst[x] };
@@ -447,13 +452,18 @@ fn store(dst: &mut [f32], acc: &[f32], relu: bool) {
     }
 }
 
-/// Output channels summed together in [`pointwise`]: with [`LANES`] pixels each, eight
+/// Output channels summed together in [`pointwise`]: with [`AVX_LANES`] pixels each, eight
 /// AVX registers of sums that every input load feeds four times.
 const OUTPUT_BLOCK: usize = 4;
 
 /// A [`Pointwise`] layer on `planes` (inputs × `pixels`) into `out` (outputs × `pixels`).
 #[inline(always)]
-fn pointwise<const FMA: bool>(layer: &Pointwise, planes: &[f32], pixels: usize, out: &mut [f32]) {
+fn pointwise<const FMA: bool, const L: usize>(
+    layer: &Pointwise,
+    planes: &[f32],
+    pixels: usize,
+    out: &mut [f32],
+) {
     let Pointwise {
         inputs,
         outputs,
@@ -463,18 +473,20 @@ fn pointwise<const FMA: bool>(layer: &Pointwise, planes: &[f32], pixels: usize, 
     } = layer;
     let (inputs, outputs) = (*inputs, *outputs);
     let mut start = 0;
-    while start + LANES <= pixels {
+    while start + L <= pixels {
         let mut o = 0;
         while o + OUTPUT_BLOCK <= outputs {
-            pointwise_block::<FMA, OUTPUT_BLOCK>(
+            pointwise_block::<FMA, OUTPUT_BLOCK, L>(
                 planes, pixels, start, o, outputs, weights, bias, *relu, out,
             );
             o += OUTPUT_BLOCK;
         }
         for o in o..outputs {
-            pointwise_block::<FMA, 1>(planes, pixels, start, o, outputs, weights, bias, *relu, out);
+            pointwise_block::<FMA, 1, L>(
+                planes, pixels, start, o, outputs, weights, bias, *relu, out,
+            );
         }
-        start += LANES;
+        start += L;
     }
     for x in start..pixels {
         for o in 0..outputs {
@@ -487,10 +499,10 @@ fn pointwise<const FMA: bool>(layer: &Pointwise, planes: &[f32], pixels: usize, 
     }
 }
 
-/// `OUTS` output channels from `first` on, pixels `start..start + LANES`.
+/// `OUTS` output channels from `first` on, pixels `start..start + L`.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn pointwise_block<const FMA: bool, const OUTS: usize>(
+fn pointwise_block<const FMA: bool, const OUTS: usize, const L: usize>(
     planes: &[f32],
     pixels: usize,
     start: usize,
@@ -501,12 +513,12 @@ fn pointwise_block<const FMA: bool, const OUTS: usize>(
     relu: bool,
     out: &mut [f32],
 ) {
-    let mut acc: [[f32; LANES]; OUTS] = std::array::from_fn(|j| [bias[first + j]; LANES]);
+    let mut acc: [[f32; L]; OUTS] = std::array::from_fn(|j| [bias[first + j]; L]);
     for (plane, row) in planes
         .chunks_exact(pixels)
         .zip(weights.chunks_exact(outputs))
     {
-        let src: &[f32; LANES] = plane[start..start + LANES].try_into().expect("a block");
+        let src: &[f32; L] = plane[start..start + L].try_into().expect("a block");
         let wts: &[f32; OUTS] = row[first..first + OUTS].try_into().expect("a block");
         for (sums, &wt) in acc.iter_mut().zip(wts) {
             for (a, &v) in sums.iter_mut().zip(src) {
@@ -517,7 +529,7 @@ fn pointwise_block<const FMA: bool, const OUTS: usize>(
     for (j, sums) in acc.iter().enumerate() {
         let o = first + j;
         store(
-            &mut out[o * pixels + start..o * pixels + start + LANES],
+            &mut out[o * pixels + start..o * pixels + start + L],
             sums,
             relu,
         );
@@ -633,7 +645,7 @@ mod tests {
         let fused = plain.forward(&data, 1, 21, 18);
         let mut portable = Vec::new();
         let mut workspace = [vec![0.0; 21 * 18 * 8], vec![0.0; 21 * 18 * 8], Vec::new()];
-        plain.images::<false>(&data, 1, (21, 18), &mut workspace, &mut portable);
+        plain.images::<false, PORTABLE_LANES>(&data, 1, (21, 18), &mut workspace, &mut portable);
         let worst = largest_difference(&fused, &portable);
         assert!(worst < 1e-4, "paths differ by {worst}");
     }
