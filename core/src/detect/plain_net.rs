@@ -317,6 +317,7 @@ fn madd<const FMA: bool>(a: f32, b: f32, c: f32) -> f32 {
 }
 
 /// Output pixels per block of a row, summed over all taps before stored: two AVX registers.
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
 const AVX_LANES: usize = 16;
 /// The same where vectors hold four floats (x86-64 without AVX2, WebAssembly's SIMD): two
 /// vectors, so that a 3 × 3 layer's sums and its nine weights fit the sixteen registers, and a
@@ -380,6 +381,14 @@ fn spatial<const FMA: bool, const L: usize>(
                     let k: &[f32; 9] = weights[at..at + 9].try_into().expect("9 taps");
                     let (first, last) = (ci == 0, ci + 1 == group_inputs);
                     let mut x = 0;
+                    #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
+                    if L == wasm_simd::PIXELS {
+                        while x + L <= ow {
+                            let init = first.then_some(bias[o]);
+                            wasm_simd::spatial_block(&taps, k, x, dst, init, *relu && last);
+                            x += L;
+                        }
+                    }
                     while x + L <= ow {
                         let block = &mut dst[x..x + L];
                         let mut acc = [bias[o]; L];
@@ -486,6 +495,24 @@ fn pointwise<const FMA: bool, const L: usize>(
     } = layer;
     let (inputs, outputs) = (*inputs, *outputs);
     let mut start = 0;
+    #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
+    if L == wasm_simd::PIXELS {
+        while start + L <= pixels {
+            let mut o = 0;
+            while o + OUTPUT_BLOCK <= outputs {
+                wasm_simd::pointwise_block::<OUTPUT_BLOCK>(
+                    planes, pixels, start, o, outputs, weights, bias, *relu, out,
+                );
+                o += OUTPUT_BLOCK;
+            }
+            for o in o..outputs {
+                wasm_simd::pointwise_block::<1>(
+                    planes, pixels, start, o, outputs, weights, bias, *relu, out,
+                );
+            }
+            start += L;
+        }
+    }
     while start + L <= pixels {
         let mut o = 0;
         while o + OUTPUT_BLOCK <= outputs {
@@ -546,6 +573,104 @@ fn pointwise_block<const FMA: bool, const OUTS: usize, const L: usize>(
             sums,
             relu,
         );
+    }
+}
+
+/// The portable path's blocks written with WebAssembly's SIMD operations: the sums of a block of
+/// [`PORTABLE_LANES`] pixels are two `v128` values the engine keeps in registers, each tap one
+/// multiply and one add per vector, as the portable loops compute them (the same values).
+#[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
+mod wasm_simd {
+    use core::arch::wasm32::{
+        f32x4_add, f32x4_mul, f32x4_pmax, f32x4_splat, v128, v128_load, v128_store,
+    };
+
+    pub(super) const PIXELS: usize = super::PORTABLE_LANES;
+    const _: () = assert!(PIXELS == 8, "two vectors of four floats");
+
+    /// Eight floats from `at` as two vectors.
+    #[inline(always)]
+    fn load(from: &[f32], at: usize) -> [v128; 2] {
+        let block = &from[at..at + PIXELS];
+        let p = block.as_ptr();
+        // SAFETY: `block` holds eight floats; v128 loads need no alignment.
+        unsafe { [v128_load(p.cast()), v128_load(p.add(4).cast())] }
+    }
+
+    #[inline(always)]
+    fn store(to: &mut [f32], at: usize, sums: [v128; 2], relu: bool) {
+        let block = &mut to[at..at + PIXELS];
+        let p = block.as_mut_ptr();
+        let zero = f32x4_splat(0.0);
+        // max(0, x) as `relu_of` has it: pmax(0, x) is x where 0 < x, else 0.
+        let sums = if relu {
+            sums.map(|v| f32x4_pmax(zero, v))
+        } else {
+            sums
+        };
+        // SAFETY: `block` holds eight floats; v128 stores need no alignment.
+        unsafe {
+            v128_store(p.cast(), sums[0]);
+            v128_store(p.add(4).cast(), sums[1]);
+        }
+    }
+
+    /// [`super::spatial`]'s block at `x`: from `init` (the bias) or from what `dst` holds.
+    #[inline(always)]
+    pub(super) fn spatial_block(
+        taps: &[&[f32]; 9],
+        k: &[f32; 9],
+        x: usize,
+        dst: &mut [f32],
+        init: Option<f32>,
+        relu: bool,
+    ) {
+        let mut acc = match init {
+            Some(b) => [f32x4_splat(b); 2],
+            None => load(dst, x),
+        };
+        for (tap, &wt) in taps.iter().zip(k) {
+            let w = f32x4_splat(wt);
+            let v = load(tap, x);
+            acc = [
+                f32x4_add(f32x4_mul(w, v[0]), acc[0]),
+                f32x4_add(f32x4_mul(w, v[1]), acc[1]),
+            ];
+        }
+        store(dst, x, acc, relu);
+    }
+
+    /// [`super::pointwise_block`] for eight pixels.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn pointwise_block<const OUTS: usize>(
+        planes: &[f32],
+        pixels: usize,
+        start: usize,
+        first: usize,
+        outputs: usize,
+        weights: &[f32],
+        bias: &[f32],
+        relu: bool,
+        out: &mut [f32],
+    ) {
+        let mut acc: [[v128; 2]; OUTS] = std::array::from_fn(|j| [f32x4_splat(bias[first + j]); 2]);
+        for (plane, row) in planes
+            .chunks_exact(pixels)
+            .zip(weights.chunks_exact(outputs))
+        {
+            let v = load(plane, start);
+            for (sums, &wt) in acc.iter_mut().zip(&row[first..first + OUTS]) {
+                let w = f32x4_splat(wt);
+                *sums = [
+                    f32x4_add(f32x4_mul(w, v[0]), sums[0]),
+                    f32x4_add(f32x4_mul(w, v[1]), sums[1]),
+                ];
+            }
+        }
+        for (j, sums) in acc.into_iter().enumerate() {
+            store(out, (first + j) * pixels + start, sums, relu);
+        }
     }
 }
 
