@@ -49,7 +49,7 @@ impl Detection {
     }
 
     fn homography_matrix(&self) -> Option<[[f64; 3]; 3]> {
-        let h = Homography::from_points(&UNIT_SQUARE, &self.record.corners).ok()?;
+        let h = Homography::from_points(&UNIT_SQUARE, &self.record.corners[..]).ok()?;
         let m = h.0 / h.0[(2, 2)];
         Some(std::array::from_fn(|i| std::array::from_fn(|j| m[(i, j)])))
     }
