@@ -322,7 +322,7 @@ const AVX_LANES: usize = 16;
 /// The same where vectors hold four floats (x86-64 without AVX2, WebAssembly's SIMD): two
 /// vectors, so that a 3 × 3 layer's sums and its nine weights fit the sixteen registers, and a
 /// 1 × 1 layer's [`OUTPUT_BLOCK`] channels of sums take eight. Sixteen pixels there spilled
-/// the sums to memory at every tap (BENCHMARKS.md, "Real photographs").
+/// the sums to memory at every tap (BENCHMARKS.md, "Studio, browser and CLI").
 const PORTABLE_LANES: usize = 8;
 
 /// A [`Spatial`] layer on `planes` (inputs × h × w) into `out` (outputs × oh × ow).
