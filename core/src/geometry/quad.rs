@@ -55,20 +55,9 @@ impl TryFrom<&[[f64; 2]]> for Quad {
 }
 
 impl Quad {
-    /// The first four points of `points`, `None` when there are fewer.
-    pub fn from_slice(points: &[[f64; 2]]) -> Option<Quad> {
-        Some(Quad(points.get(..4)?.try_into().ok()?))
-    }
-
     /// Each corner moved by `f`.
     pub fn map(self, f: impl FnMut([f64; 2]) -> [f64; 2]) -> Quad {
         Quad(self.0.map(f))
-    }
-
-    /// Side `i` as a vector, from corner `i` to corner `i + 1`.
-    pub fn side(&self, i: usize) -> [f64; 2] {
-        let (a, b) = (self[i % 4], self[(i + 1) % 4]);
-        [b[0] - a[0], b[1] - a[1]]
     }
 
     /// The sides' lengths, side `i` running from corner `i` to corner `i + 1`.
@@ -90,16 +79,6 @@ impl Quad {
         let side = self.sides().map(|s| s.max(1e-9));
         let ratio = |a: f64, b: f64| a.max(b) / a.min(b);
         ratio(side[0], side[2]).max(ratio(side[1], side[3]))
-    }
-
-    /// Twice the signed area: positive when the corners run clockwise in the image (y down).
-    pub fn twice_signed_area(&self) -> f64 {
-        (0..4)
-            .map(|i| {
-                let (a, b) = (self[i], self[(i + 1) % 4]);
-                a[0] * b[1] - a[1] * b[0]
-            })
-            .sum()
     }
 
     /// The signed area: positive when the corners run clockwise in the image (y down).
@@ -144,8 +123,7 @@ impl Quad {
         if longer <= 0.0 {
             return 0.0;
         }
-        self.shortest_side()
-            .min(self.twice_signed_area().abs() / longer)
+        self.shortest_side().min(2.0 * self.area() / longer)
     }
 
     /// The quad scaled by `factor` about its [`centre`](Self::centre).
@@ -327,7 +305,7 @@ mod tests {
     #[test]
     fn a_rectangle_has_its_sides_area_centre_and_width() {
         assert_eq!(RECTANGLE.sides(), [4.0, 2.0, 4.0, 2.0]);
-        assert_eq!(RECTANGLE.twice_signed_area(), 16.0);
+        assert_eq!(RECTANGLE.signed_area(), 8.0);
         assert_eq!(RECTANGLE.area(), 8.0);
         assert_eq!(RECTANGLE.centre(), [2.0, 1.0]);
         assert_eq!(RECTANGLE.diagonal_crossing(), Some([2.0, 1.0]));
@@ -340,7 +318,7 @@ mod tests {
     fn the_other_way_round_the_signed_area_turns_negative() {
         let mut reversed = RECTANGLE;
         reversed.reverse();
-        assert_eq!(reversed.twice_signed_area(), -16.0);
+        assert_eq!(reversed.signed_area(), -8.0);
         assert_eq!(reversed.area(), 8.0);
     }
 
@@ -366,8 +344,8 @@ mod tests {
         let json = serde_json::to_string(&RECTANGLE).unwrap();
         assert_eq!(json, "[[0.0,0.0],[4.0,0.0],[4.0,2.0],[0.0,2.0]]");
         assert_eq!(serde_json::from_str::<Quad>(&json).unwrap(), RECTANGLE);
-        assert_eq!(Quad::from_slice(&RECTANGLE[..3]), None);
-        assert_eq!(Quad::from_slice(&RECTANGLE[..]), Some(RECTANGLE));
+        assert!(Quad::try_from(&RECTANGLE[..3]).is_err());
+        assert_eq!(Quad::try_from(&RECTANGLE[..]).unwrap(), RECTANGLE);
     }
 
     #[test]

@@ -296,7 +296,7 @@ pub fn candidates(
                 continue;
             }
             let mut q = Quad([pa, pc, pb, pd]);
-            if q.twice_signed_area() < 0.0 {
+            if q.signed_area() < 0.0 {
                 q = Quad([pa, pd, pb, pc]);
             }
             if !sides_balanced(&q) {
@@ -343,7 +343,7 @@ pub fn candidates(
             }
             let pd = [pa[0] + pb[0] - corner.at[0], pa[1] + pb[1] - corner.at[1]];
             let mut q = Quad([pa, corner.at, pb, pd]);
-            if q.twice_signed_area() < 0.0 {
+            if q.signed_area() < 0.0 {
                 q = Quad([pa, pd, pb, corner.at]);
             }
             if !sides_balanced(&q) {
@@ -591,7 +591,7 @@ mod tests {
         let quads = group(&corners, &mask, &GroupOptions::default());
         assert_eq!(quads.len(), 2, "{quads:?}");
         for q in &quads {
-            assert!(q.corners.twice_signed_area() > 0.0);
+            assert!(q.corners.signed_area() > 0.0);
             let expected = if q.corners.0.contains(&a[0]) { a } else { b };
             for p in expected {
                 assert!(q.corners.0.contains(&p));
@@ -608,7 +608,7 @@ mod tests {
         let quads = group(&corners, &mask, &GroupOptions::default());
         assert_eq!(quads.len(), 1, "{quads:?}");
         let p = quads[0];
-        assert!(p.corners.twice_signed_area() > 0.0);
+        assert!(p.corners.signed_area() > 0.0);
         // The fourth corner by parallelogram: (10,10) + (52,50) − (50,12).
         assert!(p.corners.0.contains(&[12.0, 48.0]), "{p:?}");
         // A complete marker outscores a completed one.
