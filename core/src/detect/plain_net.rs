@@ -381,15 +381,14 @@ fn spatial<const FMA: bool, const L: usize>(
                     let k: &[f32; 9] = weights[at..at + 9].try_into().expect("9 taps");
                     let (first, last) = (ci == 0, ci + 1 == group_inputs);
                     let mut x = 0;
-                    #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
-                    if L == wasm_simd::PIXELS {
-                        while x + L <= ow {
+                    while x + L <= ow {
+                        #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
+                        if L == wasm_simd::PIXELS {
                             let init = first.then_some(bias[o]);
                             wasm_simd::spatial_block(&taps, k, x, dst, init, *relu && last);
                             x += L;
+                            continue;
                         }
-                    }
-                    while x + L <= ow {
                         let block = &mut dst[x..x + L];
                         let mut acc = [bias[o]; L];
                         if !first {
@@ -495,24 +494,6 @@ fn pointwise<const FMA: bool, const L: usize>(
     } = layer;
     let (inputs, outputs) = (*inputs, *outputs);
     let mut start = 0;
-    #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
-    if L == wasm_simd::PIXELS {
-        while start + L <= pixels {
-            let mut o = 0;
-            while o + OUTPUT_BLOCK <= outputs {
-                wasm_simd::pointwise_block::<OUTPUT_BLOCK>(
-                    planes, pixels, start, o, outputs, weights, bias, *relu, out,
-                );
-                o += OUTPUT_BLOCK;
-            }
-            for o in o..outputs {
-                wasm_simd::pointwise_block::<1>(
-                    planes, pixels, start, o, outputs, weights, bias, *relu, out,
-                );
-            }
-            start += L;
-        }
-    }
     while start + L <= pixels {
         let mut o = 0;
         while o + OUTPUT_BLOCK <= outputs {
@@ -553,6 +534,12 @@ fn pointwise_block<const FMA: bool, const OUTS: usize, const L: usize>(
     relu: bool,
     out: &mut [f32],
 ) {
+    #[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
+    if L == wasm_simd::PIXELS {
+        return wasm_simd::pointwise_block::<OUTS>(
+            planes, pixels, start, first, outputs, weights, bias, relu, out,
+        );
+    }
     let mut acc: [[f32; L]; OUTS] = std::array::from_fn(|j| [bias[first + j]; L]);
     for (plane, row) in planes
         .chunks_exact(pixels)
