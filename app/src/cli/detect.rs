@@ -14,8 +14,7 @@ use tagsmith::detect::MarkerReport;
 use tagsmith::detect::{BenchDetector, DetectionsFile, Detector, Found, ImageDetections};
 use tagsmith::detect::{TrackParams, Tracker};
 use tagsmith::family::Family;
-use tagsmith::geometry::Camera;
-use tagsmith::geometry::Quad;
+use tagsmith::geometry::{Camera, Quad};
 use tagsmith::image::GrayImage;
 use tagsmith_studio::settings::DetectorSettings;
 

@@ -8,8 +8,7 @@
 //! way; glyphs need the network.
 
 use crate::family::{decode, Assignment, Decoded, Family};
-use crate::geometry::Homography;
-use crate::geometry::Quad;
+use crate::geometry::{Homography, Quad};
 use crate::image::GrayImage;
 use crate::render::readback::Reader;
 

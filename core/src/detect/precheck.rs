@@ -11,8 +11,7 @@
 
 use super::cells::square_to_quad;
 use crate::family::Family;
-use crate::geometry::Homography;
-use crate::geometry::Quad;
+use crate::geometry::{Homography, Quad};
 use crate::image::GrayImage;
 use crate::render::readback::Reader;
 use crate::render::template::{rectified_template, template_corners};

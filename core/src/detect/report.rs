@@ -3,8 +3,7 @@
 
 use super::refine::RefineReport;
 use super::DetectedKeypoint;
-use crate::geometry::PoseJson;
-use crate::geometry::Quad;
+use crate::geometry::{PoseJson, Quad};
 use crate::pose::PoseUncertainty;
 use serde::{Deserialize, Serialize};
 

@@ -4,8 +4,7 @@
 use crate::detect::refine::RefineReport;
 use crate::detect::stage2::{ReadOptions, Stage2};
 use crate::detect::{BenchDetector, Detection};
-use crate::geometry::Camera;
-use crate::geometry::Quad;
+use crate::geometry::{Camera, Quad};
 use crate::image::GrayImage;
 use crate::pose::PoseJson;
 use crate::synth::Truth;

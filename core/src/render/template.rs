@@ -5,8 +5,7 @@
 use super::raster::{gray_at, rasterize};
 use super::scene::{marker_scene, RenderError, SceneOptions};
 use crate::family::Family;
-use crate::geometry::Quad;
-use crate::geometry::{warp_bilinear, Homography};
+use crate::geometry::{warp_bilinear, Homography, Quad};
 use crate::image::GrayImage;
 
 /// The ROI square's corners in a `size`-pixel template with margin `a` (fraction of the side).

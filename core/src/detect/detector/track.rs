@@ -8,8 +8,7 @@ use super::sources::{SourceParams, Trust, DEFAULT_SOURCES};
 use super::{Detector, Found, Timings};
 use crate::detect::stage1::group::Proposal;
 use crate::detect::stage2::ReadOptions;
-use crate::geometry::Camera;
-use crate::geometry::Quad;
+use crate::geometry::{Camera, Quad};
 use crate::image::GrayImage;
 use crate::io::Stopwatch;
 

@@ -15,8 +15,7 @@
 
 pub mod template;
 
-use crate::geometry::Quad;
-use crate::geometry::{Camera, Homography};
+use crate::geometry::{Camera, Homography, Quad};
 use crate::image::GrayImage;
 use crate::io::Stopwatch;
 use nalgebra::{DMatrix, Matrix3, SMatrix, SVector};
@@ -465,7 +464,7 @@ pub fn refine_marker(
     cache: &TemplateCache,
 ) -> Result<Refined, crate::render::scene::RenderError> {
     let roi = family.roi_points();
-    let roi: Quad = Quad(std::array::from_fn(|i| roi[i]));
+    let roi = Quad(std::array::from_fn(|i| roi[i]));
     // A degenerate start is refused by `refine`; any density will do for it.
     let ppu = pixels_per_unit(lens, &start.0, roi.centre()).unwrap_or(1.0);
     let tpu = Template::texels_for(family, ppu);
@@ -710,7 +709,7 @@ impl Aligner<'_> {
             corners
                 .iter()
                 .all(|&u| depth(u).signum() == first && depth(u) != 0.0)
-                .then(|| corners.map(|u| self.pixel(u)))
+                .then(|| Quad(corners.map(|u| self.pixel(u))))
         });
         for by in 0..bh {
             let y = lo_y + by * block;
@@ -718,7 +717,7 @@ impl Aligner<'_> {
                 let start = g * nalgebra::Vector3::new(lo_x as f64 + half, y as f64 + half, 1.0);
                 (start, g.column(0) * block as f64)
             });
-            let (first, last) = match level_quad.map(|q| row_span(&Quad(q), y as f64 + half)) {
+            let (first, last) = match level_quad.map(|q| row_span(&q, y as f64 + half)) {
                 // (A pixel of slack for the rounding of the quad's corners.)
                 Some(Some((from, to))) => (
                     ((from - 1.0 - half - lo_x as f64) / block as f64)

@@ -11,8 +11,7 @@
 //! 8 end within a pixel (with the traced quads' single pass over a 2-px step, 2: that coarser
 //! fit stays theirs, as it read two more of 1300 dev markers than this one there).
 
-use crate::geometry::distance;
-use crate::geometry::Quad;
+use crate::geometry::{distance, Quad};
 use crate::image::GrayImage;
 
 /// A line: a point on it and its unit direction.

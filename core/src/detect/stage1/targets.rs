@@ -7,8 +7,7 @@
 //! which is what [`super::group`] relies on.
 
 use super::STRIDE;
-use crate::geometry::inside_polygon;
-use crate::geometry::Quad;
+use crate::geometry::{inside_polygon, Quad};
 
 /// A marker as stage 1 sees it: its four ROI corners (in the family's order) and its outline.
 #[derive(Debug, Clone, PartialEq)]

@@ -12,8 +12,7 @@
 use super::edges::{intersection, weighted_line};
 use super::group::same_corners;
 use super::outline::{contrast_range, cross, noise_sigma};
-use crate::geometry::Quad;
-use crate::geometry::{distance, polygon_area};
+use crate::geometry::{distance, polygon_area, Quad};
 use crate::image::GrayImage;
 
 /// The noisiest image traced, as σ in gray levels: beyond it the dark pixels of noise join into

@@ -141,7 +141,7 @@ fn decodes_noisy_markers_of(family: &crate::Family) {
         let side = (truth.roi[1][0] - truth.roi[0][0]).hypot(truth.roi[1][1] - truth.roi[0][1]);
         let jitter = [[0.04, -0.03], [-0.02, 0.04], [0.03, 0.02], [-0.04, -0.01]];
         let start = seed as usize % 4;
-        let roi: Quad = Quad(std::array::from_fn(|j| {
+        let roi = Quad(std::array::from_fn(|j| {
             let p = truth.roi[(j + start) % 4];
             [p[0] + jitter[j][0] * side, p[1] + jitter[j][1] * side]
         }));

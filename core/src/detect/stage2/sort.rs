@@ -5,8 +5,7 @@
 
 use super::anchors::Found;
 use crate::family::{Assignment, Family};
-use crate::geometry::Quad;
-use crate::geometry::{squared_distance, Homography};
+use crate::geometry::{squared_distance, Homography, Quad};
 
 /// Found keypoints in template order.
 #[derive(Debug, Clone)]

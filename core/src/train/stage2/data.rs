@@ -9,8 +9,7 @@
 use crate::detect::stage2::anchors::{encode, PatchSpec, Targets};
 use crate::detect::stage2::normalise_patch;
 use crate::family::Family;
-use crate::geometry::Quad;
-use crate::geometry::{bounding_box, warp_bilinear, Homography};
+use crate::geometry::{bounding_box, warp_bilinear, Homography, Quad};
 use crate::image::GrayImage;
 use crate::synth::{synthesize, KeypointTruth, MarkerTruth, Mode, SynthConfig};
 use rand::{Rng, SeedableRng};
