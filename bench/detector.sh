@@ -44,7 +44,7 @@ for size in 640x480 1280x960; do
   $T detect "$speed"/[0-9]*.png --sequential --family apriltag-36h11 --json "$out/speed-$size-tagsmith.json" \
     | $PY -c '
 import re, statistics, sys
-rows = [re.search(r"markers? .*in (\d+) ms \(propose ([\d.]+) ms, verify ([\d.]+) ms, read ([\d.]+) ms, reconcile [\d.]+ ms; (\d+) ROIs?, (\d+) stage-2 pass", l) for l in sys.stdin]
+rows = [re.search(r"markers? .*in (\d+) ms \(propose ([\d.]+) ms, verify ([\d.]+) ms, read ([\d.]+) ms, reconcile [\d.]+ ms; (\d+) ROIs? \(\d+ turned away\), (\d+) stage-2 pass", l) for l in sys.stdin]
 rows = [tuple(map(float, r.groups())) for r in rows if r]
 print("Tagsmith: median %.0f ms (propose %.1f ms, verify %.1f ms, read %.1f ms), median %d ROIs, %d stage-2 passes" % tuple(
     statistics.median(r[i] for r in rows) for i in range(6)))'

@@ -5,6 +5,7 @@
 use tagsmith::detect::refine::RefineMode;
 use tagsmith::detect::stage1::group::GroupOptions;
 use tagsmith::detect::stage2::ReadOptions;
+use tagsmith::detect::verifier::VerifierParams;
 use tagsmith::detect::DetectorOptions;
 
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -55,6 +56,19 @@ pub struct DetectorSettings {
     /// on images with markers left unread or clutter).
     #[cfg_attr(not(target_arch = "wasm32"), arg(long))]
     pub no_edge_fits: bool,
+    /// The learned verifier's threshold: candidate quads it scores below this (the probability
+    /// that they frame a marker) get no stage-2 pass; 0 sends every quad to stage 2 [range:
+    /// 0..1].
+    #[cfg_attr(
+        not(target_arch = "wasm32"),
+        arg(long, default_value_t = VerifierParams::default().min_score, value_parser = parsers::share())
+    )]
+    #[serde(default = "default_verifier_threshold")]
+    pub verifier_threshold: f32,
+}
+
+fn default_verifier_threshold() -> f32 {
+    VerifierParams::default().min_score
 }
 
 impl Default for DetectorSettings {
@@ -67,6 +81,7 @@ impl Default for DetectorSettings {
             no_outline: false,
             no_cell_reads: false,
             no_edge_fits: false,
+            verifier_threshold: default_verifier_threshold(),
         }
     }
 }
@@ -89,6 +104,7 @@ impl DetectorSettings {
         options.propose.set_image_searches(!self.no_outline);
         options.cell_reads = !self.no_cell_reads;
         options.edge_fits = !self.no_edge_fits;
+        options.verifier.min_score = self.verifier_threshold;
     }
 }
 
@@ -104,6 +120,17 @@ mod parsers {
     pub fn refine_mode() -> impl TypedValueParser<Value = RefineMode> {
         clap::builder::PossibleValuesParser::new(RefineMode::NAMES)
             .map(|s| s.parse::<RefineMode>().expect("one of the names"))
+    }
+
+    pub fn share() -> impl TypedValueParser<Value = f32> {
+        clap::builder::StringValueParser::new().try_map(|s| {
+            let v: f32 = s.parse().map_err(|e| format!("{e}"))?;
+            if (0.0..1.0).contains(&v) {
+                Ok(v)
+            } else {
+                Err(format!("{v} is not in [0, 1)"))
+            }
+        })
     }
 
     pub fn unit_interval() -> impl TypedValueParser<Value = f32> {
@@ -139,6 +166,7 @@ mod tests {
             no_outline: true,
             no_cell_reads: true,
             no_edge_fits: true,
+            verifier_threshold: 0.0,
         };
         let mut options = DetectorOptions::default();
         settings.apply(&mut options);
@@ -148,5 +176,6 @@ mod tests {
         assert!(options.propose.upsample);
         assert!(!options.propose.image_searches());
         assert!(!options.cell_reads && !options.edge_fits);
+        assert_eq!(options.verifier.min_score, 0.0);
     }
 }

@@ -62,6 +62,7 @@ assets!(
     ],
     models: [
         "models/square.stage1.bin",
+        "models/square.verifier.bin",
         "models/grid-6-bw.stage2.bin",
         "models/grid-7-bw.stage2.bin",
         "models/grid-8-bw.stage2.bin",

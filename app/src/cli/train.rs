@@ -14,6 +14,7 @@ use tagsmith::detect::stage2::{shipped_families, shipped_model};
 use tagsmith::train::stage::TrainStage;
 use tagsmith::train::stage1::RoiStage;
 use tagsmith::train::stage2::KeypointStage;
+use tagsmith::train::verifier::VerifierStage;
 use tagsmith::train::{self, Event, StageEvent, StageReport, TrainConfig};
 
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -22,6 +23,9 @@ pub enum Stage {
     Keypoints,
     /// Stage 1: the ROI network on whole scenes; without a family, for every square family.
     Roi,
+    /// The verifier: marker or not, on the candidate quads stage 1 proposes in cluttered
+    /// scenes, for every square family (no FAMILY).
+    Verifier,
 }
 
 /// Bounds of the sizes a run may ask for. Memory grows with batch × width² (a batch of 100 000
@@ -206,6 +210,34 @@ impl TrainArgs {
                     },
                 )
             }
+            Stage::Verifier => {
+                if family.is_some() {
+                    return Err(CliError::bad_input(
+                        "--stage verifier trains one model for every square family: give no FAMILY",
+                    ));
+                }
+                let stage = VerifierStage::new(config.width, tagsmith::train::verifier::PATCH)
+                    .map_err(CliError::failure)?;
+                let out = self.out.unwrap_or_else(|| PathBuf::from("runs/verifier"));
+                with_progress::<VerifierStage>(
+                    &config,
+                    |on_event| {
+                        train::train(Arc::new(stage), &config, &out, self.resume, &stop, on_event)
+                    },
+                    |l: &LossTerms3| format!("loss {:.4}", l.total),
+                    |m: &Metrics3| {
+                        format!(
+                            "markers kept {:.2} % of {}, false quads turned away {:.1} % of {} \
+                             (stage 1's own {:.1} %)",
+                            100.0 * m.kept,
+                            m.positives,
+                            100.0 * m.rejected,
+                            m.negatives,
+                            100.0 * m.candidates_rejected
+                        )
+                    },
+                )
+            }
             Stage::Roi => {
                 let stage = match &family {
                     Some(f) => RoiStage::for_families(vec![f.clone()], config.width),
@@ -263,6 +295,8 @@ impl TrainArgs {
 type LossTerms1 = <RoiStage as TrainStage>::Terms;
 type Metrics1 = <RoiStage as TrainStage>::Metrics;
 type LossTerms2 = <KeypointStage as TrainStage>::Terms;
+type LossTerms3 = <VerifierStage as TrainStage>::Terms;
+type Metrics3 = <VerifierStage as TrainStage>::Metrics;
 type Metrics2 = <KeypointStage as TrainStage>::Metrics;
 
 /// Runs `train` with a progress bar (plain lines without a terminal), then prints the summary.

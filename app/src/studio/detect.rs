@@ -603,6 +603,18 @@ pub fn show(studio: &mut Studio, ui: &mut egui::Ui, ctx: &egui::Context) {
         {
             state.stale = true;
         }
+        let slider = egui::Slider::new(&mut state.settings.verifier_threshold, 0.0..=0.95)
+            .text("verifier threshold");
+        if ui
+            .add(slider)
+            .on_hover_text(
+                "the learned verifier's say on each candidate quad: quads it scores below this \
+                 get no stage-2 read (higher is faster on clutter; 0 reads every quad)",
+            )
+            .changed()
+        {
+            state.stale = true;
+        }
         if ui
             .checkbox(&mut state.settings.upsample, "tiny markers")
             .on_hover_text(

@@ -19,6 +19,8 @@ pub mod refine;
 mod report;
 pub mod stage1;
 pub mod stage2;
+#[cfg(feature = "detect")]
+pub mod verifier;
 
 pub use detection::{
     BenchDetector, DetectedKeypoint, Detection, DetectionsFile, ImageDetections, Scores,

@@ -20,6 +20,7 @@ pub mod loader;
 pub mod stage;
 pub mod stage1;
 pub mod stage2;
+pub mod verifier;
 
 use crate::family::Family;
 use burn::module::Module;

@@ -25,6 +25,7 @@ use super::stage1::pipeline::Search;
 use super::stage1::{ProposeOptions, Stage1};
 use super::stage2::model_file::ModelError;
 use super::stage2::{ReadOptions, Stage2, Stage2Result};
+use super::verifier::{Verifier, VerifierParams};
 use super::{BenchDetector, Detection};
 use crate::family::Family;
 use crate::geometry::{Camera, PoseJson};
@@ -63,6 +64,8 @@ pub struct DetectorOptions {
     pub sources: [SourceParams; SOURCES],
     pub accept: AcceptParams,
     pub refit: RefitParams,
+    /// The learned verifier's threshold (the verify phase).
+    pub verifier: VerifierParams,
 }
 
 impl Default for DetectorOptions {
@@ -75,6 +78,7 @@ impl Default for DetectorOptions {
             sources: DEFAULT_SOURCES,
             accept: AcceptParams::default(),
             refit: RefitParams::default(),
+            verifier: VerifierParams::default(),
         }
     }
 }
@@ -98,6 +102,9 @@ pub struct Timings {
     /// quad read by several families that share weights costs one pass, so there can be fewer
     /// passes than reads.
     pub passes: usize,
+    /// Quads the learned verifier turned away before any stage-2 pass.
+    #[serde(default)]
+    pub turned_away: usize,
     /// Per source, in [`Source::ALL`]'s order.
     pub sources: [SourceTally; SOURCES],
 }
@@ -120,13 +127,14 @@ impl std::fmt::Display for Timings {
             |n: usize, one: &'static str, many: &'static str| if n == 1 { one } else { many };
         write!(
             f,
-            "propose {:.1} ms, verify {:.1} ms, read {:.1} ms, reconcile {:.1} ms; {} ROI{}, {} stage-2 pass{}",
+            "propose {:.1} ms, verify {:.1} ms, read {:.1} ms, reconcile {:.1} ms; {} ROI{} ({} turned away), {} stage-2 pass{}",
             self.propose_ms,
             self.verify_ms,
             self.read_ms,
             self.reconcile_ms,
             self.proposals,
             plural(self.proposals, "", "s"),
+            self.turned_away,
             self.passes,
             plural(self.passes, "", "es"),
         )
@@ -184,6 +192,10 @@ pub fn guess_camera(image: &GrayImage) -> Option<Camera> {
 pub struct Detector {
     pub stage1: Stage1,
     pub readers: Vec<FamilyReader>,
+    /// Says which candidate quads frame a marker at all before stage 2 reads them (the shipped
+    /// one where this build ships one; `None` sends every quad that passes the families' checks
+    /// to stage 2).
+    pub verifier: Option<Verifier>,
     /// Intrinsics for the poses; without them each image's are guessed from its size and a 70°
     /// diagonal field of view.
     pub camera: Option<Camera>,
@@ -217,9 +229,11 @@ impl Detector {
         if readers.is_empty() {
             return Err(DetectorError::NoFamilies);
         }
+        let verifier = Verifier::shipped().transpose()?;
         Ok(Self {
             stage1,
             readers,
+            verifier,
             camera: None,
             options: DetectorOptions::default(),
         })

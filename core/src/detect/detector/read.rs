@@ -124,21 +124,43 @@ impl Detector {
             .precheck
             .then(|| self.sample_for_prechecks(image, &rois))
             .flatten();
+        let framed = self.framing_markers(image, &rois, timings);
         let verified = (self.readers.iter())
             .map(|reader| {
                 if !reader.has(batch.params.needs) {
                     return Vec::new();
                 }
+                let candidates = (0..rois.len()).filter(|&i| framed[i]);
                 match (&reader.precheck, &sampled) {
-                    (Some(check), Some(sampled)) => (0..rois.len())
+                    (Some(check), Some(sampled)) => candidates
                         .filter(|&i| trusted(i) || check.passes(sampled[i].as_ref()))
                         .collect(),
-                    _ => (0..rois.len()).collect(),
+                    _ => candidates.collect(),
                 }
             })
             .collect();
         timings.verify_ms += clock.ms();
         verified
+    }
+
+    /// Whether the learned verifier lets each quad on to stage 2 (every quad, without one).
+    fn framing_markers(
+        &self,
+        image: &GrayImage,
+        rois: &[Quad],
+        timings: &mut Timings,
+    ) -> Vec<bool> {
+        let min_score = self.options.verifier.min_score;
+        match &self.verifier {
+            Some(verifier) if min_score > 0.0 && !rois.is_empty() => {
+                let framed: Vec<bool> = (verifier.scores(image, rois).iter())
+                    .map(|&s| s >= min_score)
+                    .collect();
+                timings.turned_away += framed.iter().filter(|&&f| !f).count();
+                framed
+            }
+            _ => vec![true; rois.len()],
+        }
     }
 
     /// Verify, then read: stage 2 of every family on every proposal it verified; for each

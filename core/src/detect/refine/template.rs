@@ -14,7 +14,9 @@ use crate::render::scene::{marker_scene, RenderError, SceneOptions};
 /// are compared on a coarser copy of the image instead. At most this many texels across the
 /// marker with its quiet zone (32 per cell on a 36h11 tag):
 pub const MAX_TEXELS_ACROSS: f64 = 400.0;
-const MIN_TEXELS_PER_UNIT: f64 = 1.0 / 64.0;
+/// At least this many texels across the marker with its quiet zone, however small the marker
+/// looks: a far sliver or a degenerate start still gets a template with an inside to align.
+const MIN_TEXELS_ACROSS: f64 = 16.0;
 pub const TEXELS_PER_PIXEL: f64 = 1.4;
 
 /// The rasteriser's anti-aliasing places slanted edges up to ⅛ of its pixel off (it samples
@@ -101,12 +103,13 @@ impl Template {
         let area = family.extent().grow(family.quiet_zone());
         let across = area.width().max(area.height());
         let most = (MAX_TEXELS_ACROSS / across).log2().floor().exp2();
+        let least = (MIN_TEXELS_ACROSS / across).log2().ceil().exp2();
         (TEXELS_PER_PIXEL * pixels_per_unit)
             .log2()
             .ceil()
             .exp2()
             .min(most)
-            .max(MIN_TEXELS_PER_UNIT)
+            .max(least)
     }
 
     /// Renders ID `id` of `family` (its print quiet zone included) with `texels_per_unit` (a
@@ -235,8 +238,8 @@ impl Template {
         let level = &self.levels[k];
         let (w, h) = (level.width, level.height);
         let mut flat = Vec::new();
-        for y in 1..h - 1 {
-            for x in 1..w - 1 {
+        for y in 1..h.saturating_sub(1) {
+            for x in 1..w.saturating_sub(1) {
                 let [_, gx, gy, ..] = level.texels[y * w + x];
                 let (gx, gy) = (gx as f64, gy as f64);
                 if gx * gx + gy * gy < (0.002 * level.max_gradient).powi(2) {

@@ -309,3 +309,17 @@ fn the_template_cache_stays_within_its_memory_budget_dropping_the_least_recently
     let recent = cache.get(&f, 7, 4.0).unwrap();
     assert!(Arc::ptr_eq(&recent, &cache.get(&f, 7, 4.0).unwrap()));
 }
+
+/// A marker that looks a speck (a far sliver, a start homography nearly singular) still gets a
+/// template to align: every family's, with an inside on every level.
+#[test]
+fn a_marker_seen_as_a_speck_still_gets_a_template() {
+    for name in crate::builtin::names() {
+        let f = family(name);
+        let template = Template::render(&f, 0, Template::texels_for(&f, 1e-6)).unwrap();
+        for level in &template.levels {
+            let (w, h) = (level.width, level.height);
+            assert!(w >= 3 && h >= 3, "{name}: a level of {w} × {h} texels");
+        }
+    }
+}
