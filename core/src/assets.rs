@@ -156,7 +156,7 @@ mod tests {
         for path in MODELS.iter().copied() {
             assert!(file(path).starts_with(b"TAGSMITH"), "{path}");
         }
-        assert_eq!(all().count(), 20);
+        assert_eq!(all().count(), 21);
     }
 
     #[test]

@@ -130,7 +130,8 @@ impl Detector {
                 if !reader.has(batch.params.needs) {
                     return Vec::new();
                 }
-                let candidates = (0..rois.len()).filter(|&i| framed[i]);
+                let judged = reader.has(Capability::DarkFrame);
+                let candidates = (0..rois.len()).filter(|&i| !judged || framed[i]);
                 match (&reader.precheck, &sampled) {
                     (Some(check), Some(sampled)) => candidates
                         .filter(|&i| trusted(i) || check.passes(sampled[i].as_ref()))
@@ -144,6 +145,10 @@ impl Detector {
     }
 
     /// Whether the learned verifier lets each quad on to stage 2 (every quad, without one).
+    ///
+    /// Its verdict counts for the families whose markers sit on a dark frame (those with a
+    /// pre-read check): it keeps fewer of the others' markers (a TopoTag's dark square with its
+    /// blobs), and a fresh seed lost some of them to it (BENCHMARKS.md, "A learned verifier").
     fn framing_markers(
         &self,
         image: &GrayImage,
@@ -151,8 +156,9 @@ impl Detector {
         timings: &mut Timings,
     ) -> Vec<bool> {
         let min_score = self.options.verifier.min_score;
+        let judged = self.readers.iter().any(|r| r.has(Capability::DarkFrame));
         match &self.verifier {
-            Some(verifier) if min_score > 0.0 && !rois.is_empty() => {
+            Some(verifier) if judged && min_score > 0.0 && !rois.is_empty() => {
                 let framed: Vec<bool> = (verifier.scores(image, rois).iter())
                     .map(|&s| s >= min_score)
                     .collect();

@@ -461,6 +461,8 @@ fn dark_blobs_cost_no_stage_2_pass_once_checked() {
         }
     }
     let mut detector = Detector::shipped(vec![family]).unwrap();
+    // The pre-read check alone: the learned verifier turns these blobs away before it.
+    detector.options.verifier.min_score = 0.0;
     let (found, checked) = detector.detect(&image);
     assert!(found.is_empty());
     for source in detector.options.sources.iter_mut() {
@@ -572,6 +574,18 @@ fn clutter_costs_a_bounded_number_of_stage_2_passes() {
         without.passes <= 80 && without.passes > t.passes + 20,
         "{without}"
     );
+}
+
+/// The verifier judges quads only for families whose markers sit on a dark frame: a TopoTag's
+/// reads see every quad, as they did before it.
+#[test]
+fn the_verifier_leaves_families_without_a_dark_frame_alone() {
+    let topotag = crate::builtin::get("topotag-like").unwrap().unwrap();
+    let detector = Detector::shipped(vec![topotag]).unwrap();
+    assert!(detector.verifier.is_some());
+    let (_, t) = detector.detect(&clutter_scene());
+    assert_eq!(t.turned_away, 0, "{t}");
+    assert!(t.proposals > 0, "{t}");
 }
 
 /// A 36h11 marker (ID 7, about 90 px across) on a light gray ground at `(x, y)`.

@@ -262,13 +262,13 @@ fn paint_distractor(image: &mut GrayImage, truth: &[Quad], rng: &mut ChaCha8Rng)
             let (i, j) = ((s * cells) as usize, (t * cells) as usize);
             let (fs, ft) = ((s * cells).fract(), (t * cells).fract());
             let is_dark = match kind {
-                Distractor::Checkerboard => (i + j) % 2 == 0,
+                Distractor::Checkerboard => (i + j).is_multiple_of(2),
                 Distractor::Tiles => fs > 0.12 && ft > 0.12,
                 // Rows of glyph-like blocks with gaps between lines and words.
                 Distractor::Text => {
                     let line = (t * 2.0 * cells) as usize;
                     let column = (s * 4.0 * cells) as usize;
-                    line % 2 == 0
+                    line.is_multiple_of(2)
                         && glyphs[(line * 31 + column) % 256]
                         && (s * 4.0 * cells).fract() > 0.2
                 }
