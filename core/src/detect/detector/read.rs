@@ -225,7 +225,20 @@ impl Detector {
         // Families sharing weights read each quad with one pass between them; a family sharing
         // with none keeps its outputs only while it reads.
         let mut memo = PassMemo::default();
-        for (r, (reader, checked)) in self.readers.iter().zip(verified).enumerate() {
+        let mut verified: Vec<Option<Vec<usize>>> = verified.into_iter().map(Some).collect();
+        for r in self.reading_order() {
+            let reader = &self.readers[r];
+            let checked = verified[r].take().unwrap_or_default();
+            // A quad read without a correction keeps that read: another family's of it could at
+            // best tie, and a marker is one family's (on the Detect panel's three families an
+            // ArUco tag read exactly costs XO's model no pass).
+            let checked: Vec<usize> = (checked.into_iter())
+                .filter(|&i| {
+                    best[i]
+                        .as_ref()
+                        .is_none_or(|b| b.marker.corrected_errors > 0)
+                })
+                .collect();
             if checked.is_empty() || only.is_some_and(|o| o != r) {
                 continue;
             }
@@ -271,10 +284,28 @@ impl Detector {
             let accept = &self.options.accept;
             let read =
                 read.filter(|(i, m)| reader.accepts(m, batch.trust, proposals[*i].score, accept));
-            keep_fewest_corrections(&mut best, reader, proposals, read, false);
+            keep_fewest_corrections(&mut best, &self.readers, r, proposals, read, false);
         }
         timings.read_ms += clock.ms();
         best
+    }
+
+    /// The readers' indices, those that share a network's passes next to each other, the
+    /// networks most families share first (then in the order named): a family's exact reads
+    /// spare the families after it, and a shared network reads the most families' markers.
+    fn reading_order(&self) -> Vec<usize> {
+        let mut groups: Vec<Vec<usize>> = Vec::new();
+        for r in 0..self.readers.len() {
+            let stage2 = &self.readers[r].stage2;
+            match (groups.iter_mut()).find(|g| self.readers[g[0]].stage2.shares_passes_with(stage2))
+            {
+                Some(group) => group.push(r),
+                None => groups.push(vec![r]),
+            }
+        }
+        // Stable: groups of one size keep the order their first family was named in.
+        groups.sort_by_key(|g| std::cmp::Reverse(g.len()));
+        groups.concat()
     }
 
     /// Each quad's samples for the families' pre-read checks, taken once whatever the number of
@@ -382,7 +413,7 @@ impl Detector {
                     None => {}
                 }
             }
-            keep_fewest_corrections(&mut best, &self.readers[r], proposals, read, true);
+            keep_fewest_corrections(&mut best, &self.readers, r, proposals, read, true);
         }
         // The network reads a sliver from a ROI a pixel or two off that its cells, a pixel
         // wide, cannot: the fitted frame's corners go to stage 2, held like a traced quad.
@@ -418,16 +449,20 @@ type FittedCorners = Quad;
 /// ROI, the one whose code needed fewer corrections stays.
 fn keep_fewest_corrections(
     best: &mut [Option<Found>],
-    reader: &FamilyReader,
+    readers: &[FamilyReader],
+    r: usize,
     proposals: &[Proposal],
     reads: impl IntoIterator<Item = (usize, Stage2Result)>,
     cell_read: bool,
 ) {
+    let reader = &readers[r];
+    let index = |name: &str| readers.iter().position(|o| o.family.name() == name);
     for (i, marker) in reads {
-        if best[i]
-            .as_ref()
-            .is_none_or(|b| marker.corrected_errors < b.marker.corrected_errors)
-        {
+        // Fewer corrections win; of equal ones, the family named first.
+        if best[i].as_ref().is_none_or(|b| {
+            (marker.corrected_errors, r)
+                < (b.marker.corrected_errors, index(&b.family).unwrap_or(0))
+        }) {
             best[i] = Some(Found {
                 family: reader.family.name().into(),
                 evidence: reader.evidence(&marker),
