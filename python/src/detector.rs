@@ -149,6 +149,7 @@ impl Detector {
         iterations = 2,
         refine = "full",
         corner_threshold = None,
+        verifier_threshold = None,
         upsample = false,
         image_searches = true,
         cell_reads = true,
@@ -164,6 +165,7 @@ impl Detector {
         iterations: usize,
         refine: &str,
         corner_threshold: Option<f32>,
+        verifier_threshold: Option<f32>,
         upsample: bool,
         image_searches: bool,
         cell_reads: bool,
@@ -223,6 +225,15 @@ impl Detector {
                 )));
             }
             options.propose.group.corner = threshold;
+        }
+        if let Some(threshold) = verifier_threshold {
+            if !(0.0..1.0).contains(&threshold) {
+                return Err(bad_input(format!(
+                    "verifier_threshold {threshold}: give a value in [0, 1) (0 sends every quad \
+                     to stage 2)"
+                )));
+            }
+            options.verifier.min_score = threshold;
         }
         options.propose.upsample = upsample;
         options.propose.set_image_searches(image_searches);

@@ -149,7 +149,8 @@ class Detection:
     def timings(self) -> Dict[str, Any]:
         """A new dict of the image's per-phase times and counts (shared by its detections):
         ``propose_ms``, ``verify_ms``, ``read_ms``, ``reconcile_ms`` (milliseconds),
-        ``proposals``, ``reads``, ``passes`` and ``sources`` (one dict per proposal source)."""
+        ``proposals``, ``turned_away`` (quads the verifier sent to no stage-2 read), ``reads``,
+        ``passes`` and ``sources`` (one dict per proposal source)."""
     def to_json(self) -> str:
         """The detection as one JSON object, the record ``tagsmith detect --json`` writes (the
         evaluation harness's format)."""
@@ -172,6 +173,7 @@ class Detector:
         iterations: int = 2,
         refine: str = "full",
         corner_threshold: Optional[float] = None,
+        verifier_threshold: Optional[float] = None,
         upsample: bool = False,
         image_searches: bool = True,
         cell_reads: bool = True,
@@ -196,6 +198,9 @@ class Detector:
                 decoded ID).
             corner_threshold: stage 1's corner confidence for grouping quads, in (0, 1)
                 (default 0.3).
+            verifier_threshold: the learned verifier's threshold, in [0, 1) (default 0.5):
+                candidate quads it scores below this get no stage-2 read (families whose
+                markers sit on a dark frame); 0 sends every quad to stage 2.
             upsample: also run stage 1 on the image enlarged twice (one more level, four times
                 the first level's cost), for markers down to about 10 px wide.
             image_searches: run the searches for quads the network's grouping misses (outlined
@@ -209,7 +214,8 @@ class Detector:
             ValueError: an empty ``families``, an unknown family, a family without shipped
                 weights and no model, a malformed family or model file, a ``models`` key that
                 names none of the families, non-positive or non-finite ``camera``, a bad
-                ``channels``, ``refine``, ``iterations`` or ``corner_threshold``.
+                ``channels``, ``refine``, ``iterations``, ``corner_threshold`` or
+                ``verifier_threshold``.
             FileNotFoundError: a family, model or stage-1 file that does not exist.
             TypeError: an argument of the wrong type (e.g. ``families`` given as one ``str``).
         """

@@ -140,6 +140,18 @@ def test_bad_settings_name_the_argument():
         tagsmith.Detector(families=["apriltag-99h1"])
     with pytest.raises(ValueError, match="channels"):
         tagsmith.to_gray(np.zeros((4, 4, 3), np.uint8), channels="HSV")
+    with pytest.raises(ValueError, match="verifier_threshold"):
+        tagsmith.Detector(families=["apriltag-36h11"], verifier_threshold=1.5)
+
+
+def test_the_verifier_can_be_turned_off():
+    """Without the verifier every candidate quad goes to stage 2: the same marker, more passes."""
+    on = tagsmith.Detector(families=["apriltag-36h11"])
+    off = tagsmith.Detector(families=["apriltag-36h11"], verifier_threshold=0.0)
+    read_on, read_off = on.detect(scene()), off.detect(scene())
+    assert [d.tag_id for d in read_on] == [d.tag_id for d in read_off] != []
+    assert read_off[0].timings["turned_away"] == 0
+    assert read_off[0].timings["passes"] >= read_on[0].timings["passes"]
 
 
 def test_a_family_file_with_its_model_file(tmp_path):
