@@ -298,3 +298,59 @@ pub fn read_model_file(path: &Path) -> Result<Vec<u8>, ModelError> {
         source,
     })
 }
+
+/// The header of a model that belongs to no family (stage 1, the verifier): its network's
+/// settings, the steps it was trained for, the families whose markers were in its training
+/// scenes (for the record, not to check) and a checksum of its weights.
+#[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize)]
+pub struct FamilyFreeHeader<C> {
+    pub format: u32,
+    pub net: C,
+    /// Optimiser steps the weights were trained for.
+    pub steps: u64,
+    /// Families whose markers were in the training scenes (besides random designs).
+    pub families: Vec<String>,
+    /// FNV-1a 64 of the weight bytes.
+    pub weights_fnv: String,
+}
+
+/// A family-free model file of `net` (settings `config`) after `steps` steps.
+pub(crate) fn family_free_bytes<M: Module, C: Serialize + Copy>(
+    magic: &[u8],
+    net: M,
+    config: &C,
+    families: &[String],
+    steps: u64,
+) -> Result<Vec<u8>, String> {
+    let weights = weight_bytes(net)?;
+    let header = FamilyFreeHeader {
+        format: 1,
+        net: *config,
+        steps,
+        families: families.to_vec(),
+        weights_fnv: format!("{:016x}", fnv1a(&weights)),
+    };
+    Ok(pack(magic, &header, &weights))
+}
+
+/// The header of a family-free model file and its weights, checked against the checksum;
+/// `check` refuses the network's settings before anything is built from them.
+pub(crate) fn family_free_parts<'a, C: serde::de::DeserializeOwned>(
+    bytes: &'a [u8],
+    magic: &[u8],
+    kind: &'static str,
+    path: &str,
+    check: impl FnOnce(&C) -> Result<(), ModelError>,
+) -> Result<(FamilyFreeHeader<C>, &'a [u8]), ModelError> {
+    let (header, start): (FamilyFreeHeader<C>, usize) = unpack(bytes, magic, kind, path)?;
+    if header.format != 1 {
+        return Err(ModelError::Corrupt {
+            path: path.into(),
+            reason: format!("unknown format {}", header.format),
+        });
+    }
+    check(&header.net)?;
+    check_range(path, "steps", header.steps, &(0..=MAX_STEPS))?;
+    let weights = checked_weights(bytes, start, &header.weights_fnv, path)?;
+    Ok((header, weights))
+}

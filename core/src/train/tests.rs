@@ -32,8 +32,10 @@ fn a_tiny_model_overfits_a_few_patches() {
     let mut first = None;
     let mut last = f32::MAX;
     let mut steps = 0;
-    // Stops as soon as the loss is a tenth of the first: the test takes seconds.
-    while steps < 600 && first.is_none_or(|f: f32| last >= f / 10.0) {
+    // Stops as soon as the loss is a tenth of the first: the test takes seconds. The seed is
+    // the backend's, which the other tests' networks draw from at the same time, so the
+    // weights it starts from vary from run to run: the cap leaves room for a slow start.
+    while steps < 1500 && first.is_none_or(|f: f32| last >= f / 10.0) {
         let (loss, terms) = losses(net.forward(batch.input.clone()), &batch);
         first.get_or_insert(terms.total);
         last = terms.total;

@@ -5,26 +5,15 @@
 
 use super::net::{NetConfig, Stage1Net};
 use crate::detect::model_file::{
-    check_range, check_weight_size, checked_weights, fnv1a, load_weights, pack, read_model_file,
-    unpack, weight_bytes, ModelError, MAX_STEPS, WIDTHS,
+    check_range, check_weight_size, family_free_bytes, family_free_parts, load_weights,
+    read_model_file, FamilyFreeHeader, ModelError, WIDTHS,
 };
 use burn::tensor::Device;
-use serde::{Deserialize, Serialize};
 use std::path::Path;
 
 const MAGIC: &[u8] = b"TAGSMITH-STAGE1\n";
 
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Stage1Header {
-    pub format: u32,
-    pub net: NetConfig,
-    /// Optimiser steps the weights were trained for.
-    pub steps: u64,
-    /// Families whose markers were in the training scenes (besides random designs).
-    pub families: Vec<String>,
-    /// FNV-1a 64 of the weight bytes.
-    pub weights_fnv: String,
-}
+pub type Stage1Header = FamilyFreeHeader<NetConfig>;
 
 pub fn to_bytes(
     net: Stage1Net,
@@ -32,15 +21,7 @@ pub fn to_bytes(
     families: &[String],
     steps: u64,
 ) -> Result<Vec<u8>, String> {
-    let weights = weight_bytes(net)?;
-    let header = Stage1Header {
-        format: 1,
-        net: *config,
-        steps,
-        families: families.to_vec(),
-        weights_fnv: format!("{:016x}", fnv1a(&weights)),
-    };
-    Ok(pack(MAGIC, &header, &weights))
+    family_free_bytes(MAGIC, net, config, families, steps)
 }
 
 pub fn from_bytes(
@@ -48,19 +29,11 @@ pub fn from_bytes(
     path: &str,
     device: &Device,
 ) -> Result<(Stage1Net, Stage1Header), ModelError> {
-    let (header, start): (Stage1Header, usize) = unpack(bytes, MAGIC, "stage-1", path)?;
-    let corrupt = |reason: String| ModelError::Corrupt {
-        path: path.into(),
-        reason,
-    };
-    if header.format != 1 {
-        return Err(corrupt(format!("unknown format {}", header.format)));
-    }
     // The fields the network is built from, before any tensor exists (a width of 0 panics inside
     // burn, a huge one would allocate without bound).
-    check_range(path, "net.width", header.net.width, &WIDTHS)?;
-    check_range(path, "steps", header.steps, &(0..=MAX_STEPS))?;
-    let weights = checked_weights(bytes, start, &header.weights_fnv, path)?;
+    let (header, weights) = family_free_parts(bytes, MAGIC, "stage-1", path, |net: &NetConfig| {
+        check_range(path, "net.width", net.width, &WIDTHS)
+    })?;
     let net = header.net.init(device);
     let network = || format!("width {}", header.net.width);
     check_weight_size(&net, network, weights, path)?;

@@ -80,16 +80,23 @@ pub fn random_designs(count: usize, seed: u64) -> Vec<Family> {
     out
 }
 
+/// The [`TRAINING_FAMILIES`] and `designs` random designs drawn from `design_seed`: what the
+/// family-free networks (stage 1, the verifier) see markers of.
+pub fn training_families(designs: usize, design_seed: u64) -> Result<Vec<Family>, String> {
+    let mut families = Vec::new();
+    for name in TRAINING_FAMILIES {
+        let family = crate::builtin::get(name)
+            .ok_or_else(|| format!("built-in family {name} is missing"))?
+            .map_err(|e| e.to_string())?;
+        families.push(family);
+    }
+    families.extend(random_designs(designs, design_seed));
+    Ok(families)
+}
+
 impl RoiStage {
     pub fn new(width: usize) -> Result<Self, String> {
-        let mut families = Vec::new();
-        for name in TRAINING_FAMILIES {
-            let family = crate::builtin::get(name)
-                .ok_or_else(|| format!("built-in family {name} is missing"))?
-                .map_err(|e| e.to_string())?;
-            families.push(family);
-        }
-        families.extend(random_designs(RANDOM_DESIGNS, DESIGN_SEED));
+        let families = training_families(RANDOM_DESIGNS, DESIGN_SEED)?;
         Ok(Self {
             families,
             net: NetConfig { width },

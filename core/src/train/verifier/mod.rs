@@ -6,7 +6,7 @@
 pub mod data;
 
 use super::stage::{Picture, TrainStage};
-use super::stage1::{random_designs, TRAINING_FAMILIES};
+use super::stage1::training_families;
 use crate::detect::stage1::Stage1;
 use crate::detect::stage2::model_file::fnv1a;
 use crate::detect::verifier::model_file;
@@ -67,14 +67,7 @@ pub struct LossTerms {
 
 impl VerifierStage {
     pub fn new(width: usize, patch: usize) -> Result<Self, String> {
-        let mut families = Vec::new();
-        for name in TRAINING_FAMILIES {
-            let family = crate::builtin::get(name)
-                .ok_or_else(|| format!("built-in family {name} is missing"))?
-                .map_err(|e| e.to_string())?;
-            families.push(family);
-        }
-        families.extend(random_designs(RANDOM_DESIGNS, DESIGN_SEED));
+        let families = training_families(RANDOM_DESIGNS, DESIGN_SEED)?;
         let stage1 = Stage1::shipped().map_err(|e| e.to_string())?;
         Ok(Self {
             families,
