@@ -8,7 +8,7 @@ use super::{Detector, FamilyReader, Found, Timings};
 use crate::detect::cells::{CellOutcome, CellRead, CellReader, Fitted};
 use crate::detect::precheck::QuadSample;
 use crate::detect::stage1::group::{same_quad, Proposal};
-use crate::detect::stage2::{PassMemo, ReadOptions, Stage2Result};
+use crate::detect::stage2::{PassMemo, ReadOptions, RetryGate, Stage2Result};
 use crate::detect::DetectedKeypoint;
 use crate::family::{Assignment, Family};
 use crate::geometry::{Camera, Homography, Quad};
@@ -253,10 +253,34 @@ impl Detector {
             };
             let shares = (self.readers.iter().enumerate())
                 .any(|(o, other)| o != r && other.stage2.shares_passes_with(&reader.stage2));
+            // A retry from a failed pass's keypoints is a fresh quad: the verifier judges it too.
+            let min_score = self.options.verifier.min_score;
+            let verifier = (self.verifier.as_ref())
+                .filter(|_| min_score > 0.0 && reader.has(Capability::DarkFrame));
+            let gate = |quads: &[Quad]| -> Vec<bool> {
+                let scores = verifier.map(|v| v.scores(image, quads)).unwrap_or_default();
+                (0..quads.len())
+                    .map(|k| scores.get(k).is_none_or(|&s| s >= min_score))
+                    .collect()
+            };
+            let retry_gate: Option<RetryGate> = verifier.map(|_| &gate as RetryGate);
             let (first_reads, passes) = if shares {
-                (reader.stage2).first_passes_shared(image, &checked_rois, &options, &mut memo)
+                (reader.stage2).first_passes_shared(
+                    image,
+                    &checked_rois,
+                    &options,
+                    &mut memo,
+                    retry_gate,
+                )
             } else {
-                (reader.stage2).first_passes_counted(image, &checked_rois, &options)
+                let mut own = PassMemo::default();
+                (reader.stage2).first_passes_shared(
+                    image,
+                    &checked_rois,
+                    &options,
+                    &mut own,
+                    retry_gate,
+                )
             };
             timings.passes += passes;
             let mut firsts = vec![None; rois.len()];

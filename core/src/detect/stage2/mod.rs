@@ -21,7 +21,7 @@ pub mod pipeline;
 #[cfg(feature = "detect")]
 pub use crate::detect::blocks::Contrast;
 #[cfg(feature = "detect")]
-pub(crate) use pipeline::PassMemo;
+pub(crate) use pipeline::{PassMemo, RetryGate};
 #[cfg(feature = "detect")]
 pub use pipeline::{ReadOptions, Stage2, Stage2Result};
 

@@ -57,6 +57,9 @@ impl PassMemo {
     }
 }
 
+/// Says, of the ROIs the keypoints of failed passes placed, which may be read again.
+pub(crate) type RetryGate<'a> = &'a dyn Fn(&[Quad]) -> Vec<bool>;
+
 /// A loaded model, ready to run on patches and images.
 pub struct Stage2 {
     /// The folded network as plain loops: what detection runs.
@@ -262,18 +265,20 @@ impl Stage2 {
         rois: &[Quad],
         options: &ReadOptions,
     ) -> (Vec<Option<Stage2Result>>, usize) {
-        self.first_passes_shared(image, rois, options, &mut PassMemo::default())
+        self.first_passes_shared(image, rois, options, &mut PassMemo::default(), None)
     }
 
     /// [`Stage2::first_passes_counted`] taking the outputs of quads another family with the same
     /// weights read already from `memo` (and leaving its own there): the passes counted are
-    /// those run.
+    /// those run. A retry goes ahead only where `retry_gate` (if any) says yes to the ROI the
+    /// keypoints placed.
     pub(crate) fn first_passes_shared(
         &self,
         image: &GrayImage,
         rois: &[Quad],
         options: &ReadOptions,
         memo: &mut PassMemo,
+        retry_gate: Option<RetryGate>,
     ) -> (Vec<Option<Stage2Result>>, usize) {
         let mut passes = 0;
         // Retries only where the alignment with the rendering can confirm the frame such a
@@ -307,6 +312,13 @@ impl Stage2 {
                     }
                     Err(_) => {}
                 }
+            }
+            if let Some(gate) =
+                retry_gate.filter(|_| round < retry_rounds && !still_rois.is_empty())
+            {
+                let open = gate(&still_rois);
+                let kept = (still_pending.into_iter().zip(still_rois)).zip(open);
+                (still_pending, still_rois) = kept.filter(|(_, o)| *o).map(|(p, _)| p).unzip();
             }
             (pending, pending_rois) = (still_pending, still_rois);
         }
