@@ -9,6 +9,7 @@ use crate::detect::cells::{CellOutcome, CellRead, CellReader, Fitted};
 use crate::detect::precheck::QuadSample;
 use crate::detect::stage1::group::{same_quad, Proposal};
 use crate::detect::stage2::{PassMemo, ReadOptions, RetryGate, Stage2Result};
+use crate::detect::verifier::Verifier;
 use crate::detect::DetectedKeypoint;
 use crate::family::{Assignment, Family};
 use crate::geometry::{Camera, Homography, Quad};
@@ -155,18 +156,28 @@ impl Detector {
         rois: &[Quad],
         timings: &mut Timings,
     ) -> Vec<bool> {
-        let min_score = self.options.verifier.min_score;
         let judged = self.readers.iter().any(|r| r.has(Capability::DarkFrame));
-        match &self.verifier {
-            Some(verifier) if judged && min_score > 0.0 && !rois.is_empty() => {
-                let framed: Vec<bool> = (verifier.scores(image, rois).iter())
-                    .map(|&s| s >= min_score)
-                    .collect();
+        match self.verifier_on().filter(|_| judged && !rois.is_empty()) {
+            Some(verifier) => {
+                let framed = self.verified_by(verifier, image, rois);
                 timings.turned_away += framed.iter().filter(|&&f| !f).count();
                 framed
             }
-            _ => vec![true; rois.len()],
+            None => vec![true; rois.len()],
         }
+    }
+
+    /// The verifier, unless there is none or its threshold turns it off.
+    fn verifier_on(&self) -> Option<&Verifier> {
+        (self.verifier.as_ref()).filter(|_| self.options.verifier.min_score > 0.0)
+    }
+
+    /// Whether `verifier` scores each quad at least the threshold.
+    fn verified_by(&self, verifier: &Verifier, image: &GrayImage, quads: &[Quad]) -> Vec<bool> {
+        let min_score = self.options.verifier.min_score;
+        (verifier.scores(image, quads).iter())
+            .map(|&s| s >= min_score)
+            .collect()
     }
 
     /// Verify, then read: stage 2 of every family on every proposal it verified; for each
@@ -254,34 +265,20 @@ impl Detector {
             let shares = (self.readers.iter().enumerate())
                 .any(|(o, other)| o != r && other.stage2.shares_passes_with(&reader.stage2));
             // A retry from a failed pass's keypoints is a fresh quad: the verifier judges it too.
-            let min_score = self.options.verifier.min_score;
-            let verifier = (self.verifier.as_ref())
-                .filter(|_| min_score > 0.0 && reader.has(Capability::DarkFrame));
-            let gate = |quads: &[Quad]| -> Vec<bool> {
-                let scores = verifier.map(|v| v.scores(image, quads)).unwrap_or_default();
-                (0..quads.len())
-                    .map(|k| scores.get(k).is_none_or(|&s| s >= min_score))
-                    .collect()
-            };
-            let retry_gate: Option<RetryGate> = verifier.map(|_| &gate as RetryGate);
-            let (first_reads, passes) = if shares {
-                (reader.stage2).first_passes_shared(
-                    image,
-                    &checked_rois,
-                    &options,
-                    &mut memo,
-                    retry_gate,
-                )
-            } else {
-                let mut own = PassMemo::default();
-                (reader.stage2).first_passes_shared(
-                    image,
-                    &checked_rois,
-                    &options,
-                    &mut own,
-                    retry_gate,
-                )
-            };
+            let verifier = self
+                .verifier_on()
+                .filter(|_| reader.has(Capability::DarkFrame));
+            let gate = verifier.map(|v| move |quads: &[Quad]| self.verified_by(v, image, quads));
+            let retry_gate = gate.as_ref().map(|g| g as RetryGate);
+            let mut own = PassMemo::default();
+            let memo = if shares { &mut memo } else { &mut own };
+            let (first_reads, passes) = (reader.stage2).first_passes_shared(
+                image,
+                &checked_rois,
+                &options,
+                memo,
+                retry_gate,
+            );
             timings.passes += passes;
             let mut firsts = vec![None; rois.len()];
             for (i, first) in checked.iter().zip(first_reads) {

@@ -98,9 +98,9 @@ impl Verifier {
         let mut input = Vec::with_capacity(quads.len() * side * side);
         let mut mapped = Vec::with_capacity(quads.len());
         for quad in quads {
-            match rectified(image, quad, side) {
+            match input_patch(image, quad, side) {
                 Some(patch) => {
-                    input.extend(Contrast::of(&patch).normalise(&patch));
+                    input.extend(patch);
                     mapped.push(true);
                 }
                 None => mapped.push(false),
@@ -121,6 +121,13 @@ impl Verifier {
             })
             .collect()
     }
+}
+
+/// The network's input for `quad`: its [`rectified`] patch, normalised as stage 2's patches are
+/// (training and detection both take it from here).
+pub fn input_patch(image: &GrayImage, quad: &Quad, side: usize) -> Option<Vec<f32>> {
+    let patch = rectified(image, quad, side)?;
+    Some(Contrast::of(&patch).normalise(&patch))
 }
 
 /// Each of `n` patches' per-cell logits, averaged: the network's logit.

@@ -57,12 +57,7 @@ pub fn make_sample(families: &[Family], seed: u64) -> Result<SceneSample, String
     } else {
         [1, 4]
     };
-    config.augment.motion_blur_length = [3, 15];
-    config.augment.blur_sigma = [0.0, 2.0];
-    if rng.random_bool(0.2) {
-        // Past σ = 90 too: the harness's noise sweep asks for half the markers at σ = 125.
-        config.augment.noise_sigma = [15.0, 130.0];
-    }
+    camera_look(&mut config, &mut rng);
     let sample = synthesize(family, &config, rng.random()).map_err(|e| e.to_string())?;
     let quads: Vec<MarkerQuad> = sample
         .truth
@@ -81,6 +76,17 @@ pub fn make_sample(families: &[Family], seed: u64) -> Result<SceneSample, String
         targets,
         quads: quads.iter().map(|q| q.corners).collect(),
     })
+}
+
+/// How a camera spoils the family-free networks' training scenes (stage 1's, the verifier's):
+/// motion blur, defocus, and heavy sensor noise on a fifth of them.
+pub fn camera_look(config: &mut SynthConfig, rng: &mut ChaCha8Rng) {
+    config.augment.motion_blur_length = [3, 15];
+    config.augment.blur_sigma = [0.0, 2.0];
+    if rng.random_bool(0.2) {
+        // Past σ = 90 too: the harness's noise sweep asks for half the markers at σ = 125.
+        config.augment.noise_sigma = [15.0, 130.0];
+    }
 }
 
 /// A marker's mask cells count as if it covered this many cells, when it covers fewer.

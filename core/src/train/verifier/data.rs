@@ -7,13 +7,13 @@
 //!
 //! Sample `i` of a run is a pure function of (run seed, i).
 
-use crate::detect::blocks::Contrast;
 use crate::detect::stage1::{ProposeOptions, Stage1};
-use crate::detect::verifier::rectified;
+use crate::detect::verifier::input_patch;
 use crate::family::Family;
 use crate::geometry::Quad;
 use crate::image::GrayImage;
 use crate::synth::{synthesize_mixed, Mode, SynthConfig};
+use crate::train::stage1::data::camera_look;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -66,11 +66,7 @@ pub fn make_sample(
     } else {
         [1, 4]
     };
-    config.augment.motion_blur_length = [3, 15];
-    config.augment.blur_sigma = [0.0, 2.0];
-    if rng.random_bool(0.2) {
-        config.augment.noise_sigma = [15.0, 130.0];
-    }
+    camera_look(&mut config, &mut rng);
     let scene = synthesize_mixed(&chosen, &config, rng.random()).map_err(|e| e.to_string())?;
     let truth: Vec<Quad> = (scene.truth.markers.iter())
         .filter_map(|m| Quad::try_from(&m.roi[..]).ok())
@@ -127,8 +123,8 @@ pub fn make_sample(
     let mut kept_labels = Vec::with_capacity(quads.len());
     let mut kept_candidates = 0;
     for (i, (quad, label)) in quads.into_iter().zip(labels).enumerate() {
-        if let Some(p) = rectified(&image, &quad, patch) {
-            patches.extend(Contrast::of(&p).normalise(&p));
+        if let Some(p) = input_patch(&image, &quad, patch) {
+            patches.extend(p);
             kept_quads.push(quad);
             kept_labels.push(label);
             kept_candidates += usize::from(i < own);
