@@ -34,6 +34,8 @@ FAMILIES = {
     "aruco-5x5_100": ("DICT_5X5_100", None),
     "aruco-6x6_250": ("DICT_6X6_250", None),
     "aruco-mip-36h12": ("DICT_ARUCO_MIP_36h12", None),
+    "apriltag-standard41h12": (None, "tagStandard41h12"),
+    "apriltag-circle21h7": (None, "tagCircle21h7"),
 }
 
 # AprilTag corner k is Tagsmith corner APRILTAG_TO_TAGSMITH[k], and AprilTag's corners sit +0.5 px
@@ -92,6 +94,8 @@ def main():
         sys.exit(f"{family}: no baseline detector knows this family (known: {', '.join(FAMILIES)})")
     dictionary, april = FAMILIES[family]
     if args.detector == "opencv":
+        if dictionary is None:
+            sys.exit(f"{family}: OpenCV has no such dictionary")
         detect, name = opencv_detector(dictionary), f"OpenCV {cv2.__version__} ArUco ({dictionary}, subpix)"
     else:
         if april is None:
@@ -125,7 +129,8 @@ def detectors(family):
     """The baselines that read `family`, the first its own (AprilTag 3 where it has the family)."""
     if family not in FAMILIES:
         return []
-    return (["apriltag"] if FAMILIES[family][1] else []) + ["opencv"]
+    dictionary, april = FAMILIES[family]
+    return (["apriltag"] if april else []) + (["opencv"] if dictionary else [])
 
 
 if __name__ == "__main__":

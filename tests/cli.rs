@@ -44,7 +44,8 @@ fn families_lists_every_builtin_with_stats() {
     assert_eq!(cols("artoolkitplus-bch")[4..7], ["4096", "2", "named"]);
     assert_eq!(cols("aruco-mip-36h12")[6], "named");
     assert_eq!(cols("topotag-like")[6], "named");
-    assert_eq!(cols("apriltag-standard41h12")[6], "train");
+    assert_eq!(cols("apriltag-standard41h12")[6], "named");
+    assert_eq!(cols("runetag")[6], "train");
 }
 
 #[test]

@@ -216,19 +216,12 @@ fn detect_rejects_bad_rois_and_models_with_clear_errors() {
 
     let run = tagsmith(
         dir.path(),
-        &[
-            "detect",
-            img,
-            "--family",
-            "apriltag-standard41h12",
-            "--roi",
-            &roi,
-        ],
+        &["detect", img, "--family", "runetag", "--roi", &roi],
     );
     assert_eq!(run.code, 2);
     assert!(
         run.stderr
-            .contains("no weights are shipped for family \"apriltag-standard41h12\""),
+            .contains("no weights are shipped for family \"runetag\""),
         "{}",
         run.stderr
     );
@@ -351,14 +344,11 @@ fn stage_2_fine_tunes_from_the_shipped_weights() {
     let id_accuracy = report["validation"][0][1]["id_accuracy"].as_f64().unwrap();
     assert!(id_accuracy >= 0.9, "ID accuracy {id_accuracy}");
 
-    let run = tagsmith(
-        dir.path(),
-        &args("apriltag-standard41h12", &["--init", "shipped"]),
-    );
+    let run = tagsmith(dir.path(), &args("runetag", &["--init", "shipped"]));
     assert_eq!(run.code, 2);
     assert!(
         run.stderr
-            .contains("no stage-2 model is shipped for apriltag-standard41h12"),
+            .contains("no stage-2 model is shipped for runetag"),
         "{}",
         run.stderr
     );

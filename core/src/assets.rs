@@ -70,6 +70,8 @@ assets!(
         "models/topotag-like.stage2.bin",
         "models/quaternary-6x6.stage2.bin",
         "models/apriltag-xa-36h11.stage2.bin",
+        "models/apriltag-standard41h12.stage2.bin",
+        "models/apriltag-circle21h7.stage2.bin",
     ],
 );
 

@@ -13,6 +13,8 @@ pub mod memory;
 #[cfg(feature = "detect")]
 pub mod model_file;
 #[cfg(feature = "detect")]
+pub(crate) mod outline;
+#[cfg(feature = "detect")]
 pub mod plain_net;
 pub mod precheck;
 pub mod refine;

@@ -67,6 +67,12 @@ impl GrayImage {
         }
     }
 
+    /// The negative: light for dark.
+    pub fn inverted(&self) -> Self {
+        let pixels = self.pixels.iter().map(|&p| 255 - p).collect();
+        Self::from_vec(self.width, self.height, pixels)
+    }
+
     pub fn get(&self, x: u32, y: u32) -> u8 {
         self.pixels[y as usize * self.width as usize + x as usize]
     }

@@ -3,7 +3,9 @@
 //!
 //! Three modes: `quad` (stage-1 scenes, markers placed by random quadrilaterals), `camera` (a
 //! pinhole camera at a random 6-DoF pose; ground-truth pose included) and `patch` (stage-2 patches:
-//! the ROI mapped to a random quad ((a1,a2),(1−a3,a4),(1−a5,1−a6),(a7,1−a8)), a_i ~ U[0.05, 0.25]).
+//! the ROI mapped to a random quad ((a1,a2),(1−a3,a4),(1−a5,1−a6),(a7,1−a8)), a_i ~ U[a − s/7,
+//! a + s/7] around the family's template margin a, with s = 1 − 2a the template's side: U[0.05,
+//! 0.25] at the default margin).
 
 pub mod augment;
 mod background;
@@ -471,8 +473,14 @@ fn place_patch(
     rng: &mut ChaCha8Rng,
     c: &SynthConfig,
 ) -> Result<Placement, GeometryError> {
+    // The ROI's corners land within a seventh of the template's side of the template's own
+    // corners: a ROI of a family with a wide margin (data cells outside it) jitters less, so
+    // that its drawing stays in the patch.
+    let margin = family.spec().roi.margin;
+    let jitter = (1.0 - 2.0 * margin) / 7.0;
     let mut a = [0.0; 8];
-    a.iter_mut().for_each(|v| *v = rng.random_range(0.05..0.25));
+    a.iter_mut()
+        .for_each(|v| *v = rng.random_range(margin - jitter..margin + jitter));
     let (w, h) = (c.width as f64, c.height as f64);
     let quad = [
         [a[0] * w, a[1] * h],

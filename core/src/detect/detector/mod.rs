@@ -18,6 +18,7 @@ mod track;
 pub use track::{Frame, TrackParams, Tracker};
 
 use super::cells::CellReader;
+use super::outline::Outline;
 use super::precheck::PreCheck;
 use super::stage1::edges::on_edges;
 use super::stage1::group::{nested, same_quad, Proposal};
@@ -28,13 +29,15 @@ use super::stage2::{ReadOptions, Stage2, Stage2Result};
 use super::verifier::{Verifier, VerifierParams};
 use super::{BenchDetector, Detection};
 use crate::family::Family;
-use crate::geometry::{Camera, PoseJson};
+use crate::geometry::{Camera, PoseJson, Quad};
 use crate::image::GrayImage;
 use crate::io::Stopwatch;
 use read::Batch;
 use reconcile::{reconcile, Evidence, Rounds};
 use serde::{Deserialize, Serialize};
-use sources::{AcceptParams, RefitParams, Source, SourceParams, DEFAULT_SOURCES, SOURCES};
+use sources::{
+    AcceptParams, Capability, RefitParams, Source, SourceParams, DEFAULT_SOURCES, SOURCES,
+};
 
 /// One family's stage 2 and the marker size its poses assume.
 pub struct FamilyReader {
@@ -48,6 +51,8 @@ pub struct FamilyReader {
     /// before they cost a stage-2 pass or a frame fit (families whose ROI sits on a dark frame
     /// on lighter surroundings).
     pub precheck: Option<PreCheck>,
+    /// The dark frame proposals outline, where the family's ROI lies inside it.
+    pub(super) outline: Option<Outline>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -207,13 +212,30 @@ impl FamilyReader {
         let side_m = family.spec().print.marker_side_mm / 1000.0;
         let cells = CellReader::new(&family);
         let precheck = PreCheck::new(&family);
+        let outline = Outline::new(&family);
         Self {
             family,
             stage2,
             side_m,
             cells,
             precheck,
+            outline,
         }
+    }
+
+    /// The ROI stage 2 reads from a proposal's quad: the quad itself, or the ROI inside the
+    /// frame it outlines.
+    pub(super) fn roi_of(&self, quad: &Quad) -> Quad {
+        (self.outline.as_ref())
+            .and_then(|o| o.roi_in(quad))
+            .unwrap_or(*quad)
+    }
+
+    /// The proposal's quad for a ROI of the family: the inverse of [`FamilyReader::roi_of`].
+    pub(super) fn proposal_of(&self, roi: &Quad) -> Quad {
+        (self.outline.as_ref())
+            .and_then(|o| o.around(roi))
+            .unwrap_or(*roi)
     }
 
     /// The family with its shipped stage-2 weights.
@@ -288,11 +310,95 @@ impl Detector {
                 self.run_source(params, &scene, &mut rounds, &mut timings);
             }
         }
+        self.read_light_insides(&scene, &mut rounds, &mut timings);
         timings.proposals = rounds.read.len();
         let clock = Stopwatch::start();
         let kept = reconcile(rounds.found);
         timings.reconcile_ms = clock.ms();
         (kept, timings)
+    }
+
+    /// Stage 1 and the traced search on the inverted image for the families whose ROI is a light
+    /// square inside a dark frame ([`Capability::LightInsideFrame`]), read as the table's rows
+    /// of those sources are: there the ROI is a dark square on a light ring.
+    fn read_light_insides(&self, scene: &Scene, rounds: &mut Rounds, timings: &mut Timings) {
+        if !(self.readers.iter()).any(|r| r.has(Capability::LightInsideFrame)) {
+            return;
+        }
+        let row = |source: Source| {
+            (self.options.sources.iter())
+                .find(|p| p.source == source && p.selections > 0)
+                .map(|p| SourceParams {
+                    needs: Capability::LightInsideFrame,
+                    precheck: false,
+                    ..*p
+                })
+        };
+        let clock = Stopwatch::start();
+        let inverted = scene.image.inverted();
+        let search = self.stage1.search(&inverted, &self.options.propose);
+        let stage1_ms = clock.ms();
+        // The table's quads were outlines to these families: one that failed as an outline
+        // (the ROI's own edge, which stage 1 also sees) may still be their ROI.
+        let mut own = Rounds {
+            found: std::mem::take(&mut rounds.found),
+            ..Rounds::default()
+        };
+        if let Some(params) = row(Source::Stage1) {
+            self.tallied(
+                Source::Stage1,
+                stage1_ms,
+                &mut own,
+                timings,
+                |own, timings| {
+                    self.read_selections(&params, scene, own, timings, true, |r| {
+                        let selected = search.proposals(&r.kept(), &r.failed);
+                        selected.into_iter().filter(|p| r.is_new(p)).collect()
+                    })
+                },
+            );
+        }
+        if let Some(params) = row(Source::Traced).filter(|_| self.options.propose.trace.is_some()) {
+            let clock = Stopwatch::start();
+            let quads = search.traced(&inverted, &own.covered());
+            let traced_ms = clock.ms();
+            self.tallied(
+                Source::Traced,
+                traced_ms,
+                &mut own,
+                timings,
+                |own, timings| {
+                    self.read_selections(&params, scene, own, timings, true, |r| {
+                        r.fresh_outlined(&quads)
+                    })
+                },
+            );
+        }
+        rounds.found = own.found;
+        rounds.read.extend(own.read);
+        rounds.failed.extend(own.failed);
+    }
+
+    /// Runs `read` and files what it cost and found, with `propose_ms` of search before it,
+    /// under `source`.
+    fn tallied(
+        &self,
+        source: Source,
+        propose_ms: f64,
+        rounds: &mut Rounds,
+        timings: &mut Timings,
+        read: impl FnOnce(&mut Rounds, &mut Timings),
+    ) {
+        timings.propose_ms += propose_ms;
+        let before = *timings;
+        let found_before = rounds.found.len();
+        read(rounds, timings);
+        let tally = &mut timings.sources[source.index()];
+        tally.propose_ms += propose_ms;
+        tally.read_ms +=
+            (timings.read_ms + timings.verify_ms) - (before.read_ms + before.verify_ms);
+        tally.reads += timings.reads - before.reads;
+        tally.found += new_markers(&rounds.found, found_before);
     }
 
     /// Whether a source runs: switched on, and some family has what it assumes.
@@ -340,14 +446,16 @@ impl Detector {
         let mut propose_ms = clock.ms();
         match (params.source, outlined) {
             (_, Some(quads)) => {
-                self.read_selections(params, scene, rounds, timings, |r| r.fresh_outlined(&quads));
+                self.read_selections(params, scene, rounds, timings, false, |r| {
+                    r.fresh_outlined(&quads)
+                });
                 // A cluttered image traces dozens of quads, largest first, and a far sliver
                 // comes last: past the network's budget, it still gets a cell read.
                 let unread = rounds.fresh_outlined(&quads);
                 rounds.unread.extend(unread);
             }
             (Source::Stage1, None) => {
-                self.read_selections(params, scene, rounds, timings, |r| {
+                self.read_selections(params, scene, rounds, timings, false, |r| {
                     let selected = search.proposals(&r.kept(), &r.failed);
                     selected.into_iter().filter(|p| r.is_new(p)).collect()
                 });
@@ -355,7 +463,7 @@ impl Detector {
             (Source::EdgeRefits, None) => {
                 let min_move = self.options.refit.min_move_px;
                 let budget = params.budget.unwrap_or(usize::MAX);
-                self.read_selections(params, scene, rounds, timings, |r| {
+                self.read_selections(params, scene, rounds, timings, false, |r| {
                     edge_refits(image, r, budget, min_move)
                 });
             }
@@ -366,6 +474,7 @@ impl Detector {
                 let batch = Batch {
                     params,
                     trust: params.trust,
+                    rois_inside: false,
                 };
                 let reads = self.cell_reads(image, &left, tried, scene.camera, batch, timings);
                 rounds.found.extend(reads.into_iter().flatten());
@@ -381,13 +490,15 @@ impl Detector {
     }
 
     /// Up to `params.selections` selections of a source's quads (`select` picks them given what
-    /// was read so far), at most `params.budget` each, verified and read.
+    /// was read so far), at most `params.budget` each, verified and read. `rois_inside`: the
+    /// quads are ROIs inside dark frames ([`Batch::rois_inside`]).
     fn read_selections(
         &self,
         params: &SourceParams,
         scene: &Scene,
         rounds: &mut Rounds,
         timings: &mut Timings,
+        rois_inside: bool,
         mut select: impl FnMut(&Rounds) -> Vec<Proposal>,
     ) {
         for selection in 0..params.selections {
@@ -408,7 +519,11 @@ impl Detector {
                 scene.image,
                 &batch,
                 scene.camera,
-                Batch { params, trust },
+                Batch {
+                    params,
+                    trust,
+                    rois_inside,
+                },
                 timings,
             );
             rounds.record(batch, reads);

@@ -22,6 +22,9 @@ use rayon::prelude::*;
 pub(super) struct Batch<'a> {
     pub params: &'a SourceParams,
     pub trust: Trust,
+    /// Whether the quads are the ROIs themselves (stage 1 on the inverted image), not the dark
+    /// outlines around them.
+    pub rois_inside: bool,
 }
 
 impl FamilyReader {
@@ -31,6 +34,7 @@ impl FamilyReader {
             Capability::Any => true,
             Capability::DarkFrame => self.precheck.is_some(),
             Capability::FlatCells => self.cells.is_some(),
+            Capability::LightInsideFrame => self.outline.is_some(),
         }
     }
 
@@ -256,7 +260,11 @@ impl Detector {
             // The first stage-2 pass over every verified quad in one batch (and the retries from
             // their keypoints); only the ROIs decoded get the second pass, the alignment and the
             // pose.
-            let checked_rois: Vec<Quad> = checked.iter().map(|&i| rois[i]).collect();
+            let roi_of = |quad: &Quad| match batch.rois_inside {
+                true => *quad,
+                false => reader.roi_of(quad),
+            };
+            let checked_rois: Vec<Quad> = checked.iter().map(|&i| roi_of(&rois[i])).collect();
             timings.reads += checked_rois.len();
             let options = ReadOptions {
                 retried_rois: batch.params.retried_rois,
@@ -398,8 +406,9 @@ impl Detector {
                                 return None;
                             }
                         }
-                        let frame = *frames[frame_of[k]]
-                            .get_or_insert_with(|| cells.frame(image, &proposal.corners));
+                        let frame = *frames[frame_of[k]].get_or_insert_with(|| {
+                            cells.frame(image, &reader.roi_of(&proposal.corners))
+                        });
                         let limit = reader.correction_limit(&self.options.accept) / 2;
                         let cell_read =
                             match cells.read_fitted(&reader.family, image, frame.as_ref(), limit) {
@@ -427,7 +436,7 @@ impl Detector {
                     Some(Err(corners)) => framed.push((
                         i,
                         Proposal {
-                            corners: *corners,
+                            corners: self.readers[r].proposal_of(corners),
                             ..proposals[i]
                         },
                     )),

@@ -74,6 +74,10 @@ pub enum Capability {
     DarkFrame,
     /// Flat black/white cells that can be read straight off the image.
     FlatCells,
+    /// The ROI is a light square inside a dark frame, with cells outside the frame (AprilTag 3's
+    /// standard41h12 and circle21h7): stage 1 finds it on the inverted image, where it is a dark
+    /// square on a light ring.
+    LightInsideFrame,
 }
 
 /// How far a proposal's source is trusted: how many of the family's corrections its code may

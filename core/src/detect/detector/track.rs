@@ -182,9 +182,11 @@ impl Detector {
                 continue;
             }
             timings.proposals += proposals.len();
+            // The quads are last frame's ROIs, wherever the family's frame lies.
             let batch = Batch {
                 params: &TRACKED,
                 trust: Trust::Later,
+                rois_inside: true,
             };
             let reads =
                 self.read_one_family(r, &read, image, &proposals, camera, batch, &mut timings);

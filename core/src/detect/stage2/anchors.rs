@@ -44,9 +44,13 @@ impl PatchSpec {
     /// The smallest patch (128, 256 or 512 px at stride 4) on which the family's closest two
     /// keypoints are at least two anchors apart on the template square: 128 for every built-in
     /// grid, 256 for RuneTag's inner ring (the reference uses 512 at stride 8, the same ratio).
+    /// The ROI sits at the family's template margin.
     pub fn for_family(family: &crate::Family) -> Self {
         let closest = family.keypoint_pitch();
-        let mut spec = Self::default();
+        let mut spec = Self {
+            margin: family.spec().roi.margin,
+            ..Self::default()
+        };
         let square = 1.0 - 2.0 * spec.margin;
         while spec.size < 512
             && closest / family.roi_side() * square * (spec.size as f64) < 2.0 * spec.stride as f64

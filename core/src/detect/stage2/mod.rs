@@ -59,6 +59,17 @@ const SHIPPED: &[(&str, &str)] = &[
     ("topotag-like", "models/topotag-like.stage2.bin"),
     // The grid model's trunk with a class head of its own (five categories).
     ("quaternary-6x6", "models/quaternary-6x6.stage2.bin"),
+    // The 8 × 8 grid model fine-tuned on a patch with a wider margin: data cells lie outside the
+    // black frame, round the ROI inside it.
+    (
+        "apriltag-standard41h12",
+        "models/apriltag-standard41h12.stage2.bin",
+    ),
+    // Fine-tuned from 41h12's: the same frame and margin, without the corner cells.
+    (
+        "apriltag-circle21h7",
+        "models/apriltag-circle21h7.stage2.bin",
+    ),
 ];
 
 /// The built-in families with shipped stage-2 weights.

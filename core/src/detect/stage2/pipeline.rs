@@ -167,7 +167,7 @@ impl Stage2 {
     fn new(net: &Stage2Net, header: ModelHeader, family: &Family) -> Self {
         let spec = PatchSpec {
             size: header.net.patch as u32,
-            ..PatchSpec::default()
+            ..PatchSpec::for_family(family)
         };
         let identity = format!(
             "{} {} {}",

@@ -62,6 +62,19 @@ fn the_topotag_model_decodes_a_noisy_marker_and_its_pose() {
     decodes_noisy_markers("topotag-like");
 }
 
+/// tagStandard41h12's model, fine-tuned from the 8 × 8 grid model on a patch whose margin holds
+/// the data cells outside the black frame, round the ROI inside it.
+#[test]
+fn the_standard41h12_model_decodes_a_noisy_marker_and_its_pose() {
+    decodes_noisy_markers("apriltag-standard41h12");
+}
+
+/// tagCircle21h7's model, fine-tuned from 41h12's.
+#[test]
+fn the_circle21h7_model_decodes_a_noisy_marker_and_its_pose() {
+    decodes_noisy_markers("apriltag-circle21h7");
+}
+
 /// Quaternary 6×6's model, fine-tuned from the grid model's trunk with a fresh class head: four
 /// cell shapes and the orientation mark.
 #[test]
@@ -84,8 +97,10 @@ fn a_users_grid_family_with_its_own_codes_reads_with_the_model_of_its_layout() {
     let mut dark = family.spec().clone();
     dark.background = "#303030".into();
     assert!(shipped_model_for(&crate::Family::from_spec(dark).unwrap()).is_none());
-    // A layout no shipped model learned (tagStandard41h12's, cells outside the frame) has none.
-    let family = crate::Family::from_spec(renamed("apriltag-standard41h12", "my-41h12")).unwrap();
+    // A layout no shipped model learned (a 9 × 9 grid with a 7 × 7 ROI) has none.
+    let mut spec = renamed("apriltag-standard41h12", "my-41h12");
+    spec.roi.points = vec![[1.0, 1.0], [8.0, 1.0], [8.0, 8.0], [1.0, 8.0]];
+    let family = crate::Family::from_spec(spec).unwrap();
     assert!(shipped_model_for(&family).is_none());
 }
 

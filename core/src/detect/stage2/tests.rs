@@ -20,9 +20,12 @@ fn targets_decode_to_the_ground_truth() {
         "apriltag-xo-36h11",
         "topotag-like",
         "runetag",
+        // Data cells outside the frame, in the margin round its ROI.
+        "apriltag-standard41h12",
     ] {
         let family = builtin::get(name).unwrap().unwrap();
         let spec = PatchSpec::for_family(&family);
+        assert_eq!(spec.margin, family.spec().roi.margin, "{name}");
         let mut config = SynthConfig::new(Mode::Patch);
         config.width = spec.size;
         config.height = spec.size;

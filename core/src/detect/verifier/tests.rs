@@ -112,7 +112,11 @@ mod shipped {
             .take(3)
             .collect();
         assert_eq!(random.len(), 3);
-        let builtin = shipped_families().map(|name| crate::builtin::get(name).unwrap().unwrap());
+        // A ROI inside a dark frame (41h12's, circle21h7's) outlines no marker, and the verifier
+        // does not judge those families' quads.
+        let builtin = shipped_families()
+            .map(|name| crate::builtin::get(name).unwrap().unwrap())
+            .filter(|family| crate::detect::outline::Outline::new(family).is_none());
         for family in builtin.chain(random) {
             for seed in [1, 2] {
                 let (image, roi) = marker_on_a_page(&family, seed);

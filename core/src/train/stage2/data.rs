@@ -1,10 +1,10 @@
 //! Stage 2's training patches.
 //!
 //! Sample `i` of a run is a pure function of (run seed, i): either the synthesiser's patch mode
-//! (the ROI mapped to a random quad, a_i ~ U[0.05, 0.25], blur, noise, lighting) or, for a share
-//! of the samples, a patch cut from a steep camera view ([`camera_cut`]); then a turn of the whole
-//! patch by a random multiple of 90°, because stage 1's ROI starts at whichever corner it sees
-//! first.
+//! (the ROI mapped to a random quad, a_i within a seventh of the template's side of the family's
+//! margin: U[0.05, 0.25] at 0.15; blur, noise, lighting) or, for a share of the samples, a patch
+//! cut from a steep camera view ([`camera_cut`]); then a turn of the whole patch by a random
+//! multiple of 90°, because stage 1's ROI starts at whichever corner it sees first.
 
 use crate::detect::stage2::anchors::{encode, PatchSpec, Targets};
 use crate::detect::stage2::normalise_patch;
