@@ -16,7 +16,14 @@ same scripts and `tagsmith eval score` / `eval compare` score it:
     bench/.venv/bin/python bench/baselines.py /tmp/foreign36 --detector apriltag -o /tmp/foreign36-apriltag.json
     target/release/tagsmith eval compare /tmp/foreign36 /tmp/foreign36-tagsmith.json /tmp/foreign36-apriltag.json
 
-(`bench/foreign.sh OUT_DIR SEED` does all of it for both families.)
+(`bench/foreign.sh OUT_DIR SEED` does all of it for both families.) AprilTag 3's tagStandard41h12
+and tagCircle21h7, which OpenCV does not draw, are drawn from AprilTag's own tag images:
+
+    bench/.venv/bin/python bench/foreign.py apriltag-standard41h12 /tmp/foreign41 --images 300 \
+        --seed 7 --bitmaps apriltag-imgs/tagStandard41h12
+
+(a checkout of github.com/AprilRobotics/apriltag-imgs); their whole drawing is the 5 cm square
+and the ROI the 5 cells of 9 inside the frame.
 
 One marker of the set's family per image: a 5 cm black square 10-100 cm from the camera, its face
 turned 0-75 degrees from the line of sight, as in the harness's protocol. Each image's group is
@@ -43,6 +50,14 @@ from corners import apply, rotation
 FAMILIES = {
     "apriltag-36h11": ("DICT_APRILTAG_36h11", 587),
     "aruco-6x6_250": ("DICT_6X6_250", 250),
+}
+# Tagsmith family -> (AprilTag's own image of ID n, number of IDs): AprilTag 3's layouts with data
+# cells outside the frame, which OpenCV does not draw. The images are AprilRobotics' (the
+# apriltag-imgs repository, BSD 2-clause), read from --bitmaps DIR (its folder for the family);
+# none is copied here. Their ROI is AprilTag's: cells 2-7 of 9, where the frame meets the white.
+BITMAP_FAMILIES = {
+    "apriltag-standard41h12": ("tag41_12_{:05d}.png", 2115),
+    "apriltag-circle21h7": ("tag21_07_{:05d}.png", 38),
 }
 DISTRACTORS = [("DICT_4X4_50", 50), ("DICT_5X5_100", 100)]
 W, H = 1280, 960
@@ -103,16 +118,50 @@ def background(rng, colour):
     return img.astype(np.float32)
 
 
-def draw_sheet(rng, dictionary, marker_id, px_per_cell):
-    """A marker on its sheet of paper: (image, cells across the black square, margin in px)."""
-    cells = dictionary.markerSize + 2
-    side = cells * px_per_cell
-    marker = cv2.aruco.generateImageMarker(dictionary, marker_id, side, borderBits=1)
+class OpenCvDrawing:
+    """Markers OpenCV draws: the ROI is the whole black square."""
+
+    def __init__(self, dictionary):
+        self.dictionary = dictionary
+        self.roi_cells = dictionary.markerSize + 2
+        self.roi_side_m = SIDE_M
+
+    def image(self, marker_id, px_per_cell):
+        """The marker at `px_per_cell`, and the cells from its edge to the ROI."""
+        side = self.roi_cells * px_per_cell
+        return cv2.aruco.generateImageMarker(self.dictionary, marker_id, side, borderBits=1), 0
+
+
+class BitmapDrawing:
+    """AprilTag's own one-pixel-a-cell images, turned 180 degrees into OpenCV's convention (the
+    one Tagsmith's family files follow); transparent cells are paper."""
+
+    def __init__(self, folder, pattern):
+        self.folder, self.pattern = folder, pattern
+        self.roi_cells = 5
+        # The drawing, not its ROI, is SIDE_M across, as an OpenCV marker's is.
+        self.roi_side_m = SIDE_M * 5 / 9
+
+    def image(self, marker_id, px_per_cell):
+        path = os.path.join(self.folder, self.pattern.format(marker_id))
+        rgba = cv2.imread(path, cv2.IMREAD_UNCHANGED)
+        if rgba is None:
+            sys.exit(f"{path}: cannot read the tag image (--bitmaps is AprilTag's folder of the family)")
+        cells = np.where(rgba[..., 3] < 128, 255, rgba[..., 0]).astype(np.uint8)
+        cells = np.rot90(cells, 2)
+        n = cells.shape[0]
+        big = cv2.resize(cells, (n * px_per_cell, n * px_per_cell), interpolation=cv2.INTER_NEAREST)
+        return big, (n - self.roi_cells) // 2
+
+
+def draw_sheet(rng, drawing, marker_id, px_per_cell):
+    """A marker on its sheet of paper: (image, ROI side in px, sheet px from the edge to the ROI)."""
+    marker, roi_offset_cells = drawing.image(marker_id, px_per_cell)
     margin = int(round(float(rng.choice([0.5, 1.0, 1.0, 1.5, 2.0, 3.0])) * px_per_cell))
     paper, ink = rng.uniform(170, 255), rng.uniform(0, 70)
     sheet = cv2.copyMakeBorder(marker, margin, margin, margin, margin, cv2.BORDER_CONSTANT, value=255)
     sheet = np.where(sheet > 127, paper, ink).astype(np.float32)
-    return sheet, side, margin
+    return sheet, drawing.roi_cells * px_per_cell, margin + roi_offset_cells * px_per_cell
 
 
 def random_pose(rng, distance, view_angle):
@@ -132,11 +181,11 @@ def random_pose(rng, distance, view_angle):
     return rotation(axis, view_angle) @ facing, distance * ray
 
 
-def sheet_to_image(r, t, side_px, margin):
-    """Homography sheet pixels -> final-image pixels for a black square of SIDE_M metres."""
-    s = SIDE_M / side_px
+def sheet_to_image(r, t, side_px, margin, side_m):
+    """Homography sheet pixels -> final-image pixels for a ROI of `side_m` metres."""
+    s = side_m / side_px
     # Sheet pixel (u, v) -> marker plane (x, y): the black square spans margin - 0.5 .. margin + side - 0.5.
-    to_plane = np.array([[s, 0, -s * (margin - 0.5) - SIDE_M / 2], [0, -s, s * (margin - 0.5) + SIDE_M / 2], [0, 0, 1]])
+    to_plane = np.array([[s, 0, -s * (margin - 0.5) - side_m / 2], [0, -s, s * (margin - 0.5) + side_m / 2], [0, 0, 1]])
     return K @ np.column_stack([r[:, 0], r[:, 1], t]) @ to_plane
 
 
@@ -145,16 +194,15 @@ def corners_of(h, side_px, margin, pad=0.0):
     return np.array([apply(h, p) for p in [[a, a], [b, a], [b, b], [a, b]]])
 
 
-def place(rng, dictionary, marker_id, distance, tilt, taken):
+def place(rng, drawing, marker_id, distance, tilt, taken):
     """A pose whose sheet lies in the image, faces the camera and misses the sheets already placed."""
     for _ in range(200):
         r, t = random_pose(rng, distance, tilt)
         # Cells drawn at least as fine as the large image shows them, so the warp only shrinks.
-        across_px = FOCAL * SIDE_M / t[2] * SS
-        cells = dictionary.markerSize + 2
-        px_per_cell = int(np.clip(math.ceil(across_px / cells), 4, 96))
-        sheet, side_px, margin = draw_sheet(rng, dictionary, marker_id, px_per_cell)
-        h = sheet_to_image(r, t, side_px, margin)
+        across_px = FOCAL * drawing.roi_side_m / t[2] * SS
+        px_per_cell = int(np.clip(math.ceil(across_px / drawing.roi_cells), 4, 96))
+        sheet, side_px, margin = draw_sheet(rng, drawing, marker_id, px_per_cell)
+        h = sheet_to_image(r, t, side_px, margin, drawing.roi_side_m)
         outline = corners_of(h, side_px, margin, pad=margin)
         inside = np.all(outline[:, 0] > 2) and np.all(outline[:, 0] < W - 3) and np.all(outline[:, 1] > 2) and np.all(outline[:, 1] < H - 3)
         lo, hi = outline.min(0), outline.max(0)
@@ -216,16 +264,24 @@ def light_and_lens(rng, img):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("family", choices=sorted(FAMILIES))
+    ap.add_argument("family", choices=sorted({**FAMILIES, **BITMAP_FAMILIES}))
     ap.add_argument("out_dir")
     ap.add_argument("--images", type=int, default=300)
     ap.add_argument("--seed", type=int, required=True, help="pick one nobody has tuned on")
+    ap.add_argument("--bitmaps", help="AprilTag's tag images of the family (github.com/AprilRobotics/apriltag-imgs, e.g. its tagStandard41h12 folder)")
     args = ap.parse_args()
 
-    name, ids = FAMILIES[args.family]
-    dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, name))
+    if args.family in FAMILIES:
+        name, ids = FAMILIES[args.family]
+        drawing = OpenCvDrawing(cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, name)))
+    else:
+        if not args.bitmaps:
+            sys.exit(f"{args.family}: give --bitmaps, the folder of AprilTag's images of the family")
+        pattern, ids = BITMAP_FAMILIES[args.family]
+        drawing = BitmapDrawing(args.bitmaps, pattern)
     # Each family its own scenes for one seed.
-    rng = np.random.default_rng([args.seed, sorted(FAMILIES).index(args.family)])
+    families = sorted(FAMILIES) + sorted(BITMAP_FAMILIES)
+    rng = np.random.default_rng([args.seed, families.index(args.family)])
     os.makedirs(os.path.join(args.out_dir, "images"), exist_ok=True)
     images = []
     for n in range(args.images):
@@ -235,13 +291,13 @@ def main():
         distance = rng.uniform(0.1, 1.0)
         tilt = math.radians(rng.uniform(0, 75))
         marker_id = int(rng.integers(0, ids))
-        placed = place(rng, dictionary, marker_id, distance, tilt, taken)
+        placed = place(rng, drawing, marker_id, distance, tilt, taken)
         if placed is None:
             sys.exit(f"image {n}: no pose puts the marker in view (distance {distance:.2f} m)")
         r, t, sheet, side_px, margin, h = placed
         for _ in range(int(rng.integers(0, 3))):
             other_name, other_ids = DISTRACTORS[int(rng.integers(len(DISTRACTORS)))]
-            other = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, other_name))
+            other = OpenCvDrawing(cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, other_name)))
             extra = place(rng, other, int(rng.integers(0, other_ids)), rng.uniform(0.1, 1.0), math.radians(rng.uniform(0, 75)), taken)
             if extra is not None:
                 paste(rng, img, extra[2], extra[5])
@@ -263,13 +319,13 @@ def main():
             "roi": roi.tolist(),
             "keypoints": [],
             "mask": roi.tolist(),
-            "pose": {"rotation": r.tolist(), "translation_m": t.tolist(), "side_m": SIDE_M},
+            "pose": {"rotation": r.tolist(), "translation_m": t.tolist(), "side_m": drawing.roi_side_m},
         }
         truth = {"family": args.family, "mode": "camera", "seed": args.seed, "width": W, "height": H, "markers": [marker], "applied": applied}
         group = {"kind": "protocol", "distance_cm": distance_cm, "angle_deg": angle_deg, "normal": distance_cm <= 50 and angle_deg <= 60}
         images.append({"file": file, "group": group, "truth": truth})
     camera = {"width": W, "height": H, "fx": FOCAL, "fy": FOCAL, "cx": (W - 1) / 2, "cy": (H - 1) / 2, "distortion": [0.0] * 5}
-    manifest = {"family": args.family, "side_m": SIDE_M, "camera": camera, "seed": args.seed, "images": images}
+    manifest = {"family": args.family, "side_m": drawing.roi_side_m, "camera": camera, "seed": args.seed, "images": images}
     tmp = os.path.join(args.out_dir, "set.json.tmp")
     with open(tmp, "w") as f:
         json.dump(manifest, f)
