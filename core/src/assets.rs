@@ -158,7 +158,7 @@ mod tests {
         for path in MODELS.iter().copied() {
             assert!(file(path).starts_with(b"TAGSMITH"), "{path}");
         }
-        assert_eq!(all().count(), 21);
+        assert_eq!(all().count(), 23);
     }
 
     #[test]
