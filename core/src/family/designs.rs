@@ -175,6 +175,10 @@ pub fn apriltag3_family(
 ) -> Result<FamilySpec, DesignError> {
     let grid = table.to_grid()?;
     let (first, side) = grid.border_square;
+    let mut roi = square_roi(first as f64, side as f64);
+    if side < grid.cells.len() {
+        roi.margin = OUTER_CELLS_MARGIN;
+    }
     let source = format!(
         "Codes and layout: AprilTag 3 library, {} (BSD 2-clause), turned 180° into OpenCV's convention.",
         table.name
@@ -190,10 +194,14 @@ pub fn apriltag3_family(
         grid.cells,
         legend(&[("b", "black"), ("w", "white")]),
         black_white(),
-        square_roi(first as f64, side as f64),
+        roi,
         table_codebook(&grid.codes, Some(table.h), &source),
     ))
 }
+
+/// The template margin of a ROI with data cells outside it: stage 2's patch then holds the whole
+/// drawing (41h12's 9 cells round a ROI of 5 span 0.72 of it).
+const OUTER_CELLS_MARGIN: f64 = 0.3;
 
 /// AprilTag 36h11 codes drawn with two shapes on a light background inside a black frame:
 /// `zero` for bit 0 and `one` for bit 1 (DeepTag's AprilTag-XO / XA idea).
