@@ -792,3 +792,42 @@ fn a_grid_family_the_shared_model_never_saw_is_detected_in_whole_images() {
     truth_ids.sort();
     assert_eq!(found_ids, truth_ids);
 }
+
+/// A tagStandard41h12 marker seen close and steep: stage 1 on the inverted image places only
+/// some of its ROI's corners, and the traced search on the inverted image outlines the ROI.
+#[test]
+fn close_steep_standard41h12_markers_are_found_by_the_traced_search_on_the_inverted_image() {
+    let family = crate::builtin::get("apriltag-standard41h12")
+        .unwrap()
+        .unwrap();
+    let mut detector = Detector::shipped(vec![family.clone()]).unwrap();
+    let mut config = crate::synth::SynthConfig::new(crate::synth::Mode::Camera);
+    config.markers = [1, 1];
+    config.side_m = [0.05, 0.05];
+    config.distance_m = [0.1, 0.13];
+    config.view_angle_deg = [45.0, 55.0];
+    let scenes: Vec<_> = (0..6)
+        .map(|seed| crate::synth::synthesize(&family, &config, seed).unwrap())
+        .collect();
+    let read = |detector: &Detector| {
+        (scenes.iter())
+            .filter(|s| {
+                let id = s.truth.markers[0].id;
+                detector
+                    .detect(&s.image)
+                    .0
+                    .iter()
+                    .any(|f| f.marker.id == id)
+            })
+            .count()
+    };
+    let with_traced = read(&detector);
+    detector.options.propose.trace = None;
+    let without = read(&detector);
+    assert_eq!(
+        with_traced,
+        scenes.len(),
+        "without the traced search: {without}"
+    );
+    assert!(without < with_traced, "{without} of {with_traced}");
+}
