@@ -38,8 +38,9 @@ impl Outline {
         if !axis_aligned {
             return None;
         }
-        let reader = Reader::new(family);
-        let dark = |c: usize| reader.mean_gray(c) < DARK_GRAY;
+        // Rendered only when a ring of fixed cells asks: most ROIs have no cells round them.
+        let reader = std::cell::OnceCell::new();
+        let dark = |c: usize| reader.get_or_init(|| Reader::new(family)).mean_gray(c) < DARK_GRAY;
         let cell = family.cell_size();
         let (mut min, mut max) = (roi[0], roi[2]);
         loop {

@@ -334,6 +334,11 @@ impl Detector {
                     ..*p
                 })
         };
+        let stage1_row = row(Source::Stage1);
+        let traced_row = row(Source::Traced).filter(|_| self.options.propose.trace.is_some());
+        if stage1_row.is_none() && traced_row.is_none() {
+            return;
+        }
         let clock = Stopwatch::start();
         let inverted = scene.image.inverted();
         let search = self.stage1.search(&inverted, &self.options.propose);
@@ -344,61 +349,40 @@ impl Detector {
             found: std::mem::take(&mut rounds.found),
             ..Rounds::default()
         };
-        if let Some(params) = row(Source::Stage1) {
-            self.tallied(
-                Source::Stage1,
-                stage1_ms,
-                &mut own,
-                timings,
-                |own, timings| {
-                    self.read_selections(&params, scene, own, timings, true, |r| {
-                        let selected = search.proposals(&r.kept(), &r.failed);
-                        selected.into_iter().filter(|p| r.is_new(p)).collect()
-                    })
-                },
-            );
+        let (before, found_before) = (*timings, own.found.len());
+        if let Some(params) = stage1_row {
+            self.read_selections(&params, scene, &mut own, timings, true, |r| {
+                stage1_selection(&search, r)
+            });
         }
-        if let Some(params) = row(Source::Traced).filter(|_| self.options.propose.trace.is_some()) {
+        file_tally(
+            Source::Stage1,
+            stage1_ms,
+            &before,
+            found_before,
+            &own,
+            timings,
+        );
+        if let Some(params) = traced_row {
+            let (before, found_before) = (*timings, own.found.len());
             let clock = Stopwatch::start();
             let quads = search.traced(&inverted, &own.covered());
             let traced_ms = clock.ms();
-            self.tallied(
+            self.read_selections(&params, scene, &mut own, timings, true, |r| {
+                r.fresh_outlined(&quads)
+            });
+            file_tally(
                 Source::Traced,
                 traced_ms,
-                &mut own,
+                &before,
+                found_before,
+                &own,
                 timings,
-                |own, timings| {
-                    self.read_selections(&params, scene, own, timings, true, |r| {
-                        r.fresh_outlined(&quads)
-                    })
-                },
             );
         }
         rounds.found = own.found;
         rounds.read.extend(own.read);
         rounds.failed.extend(own.failed);
-    }
-
-    /// Runs `read` and files what it cost and found, with `propose_ms` of search before it,
-    /// under `source`.
-    fn tallied(
-        &self,
-        source: Source,
-        propose_ms: f64,
-        rounds: &mut Rounds,
-        timings: &mut Timings,
-        read: impl FnOnce(&mut Rounds, &mut Timings),
-    ) {
-        timings.propose_ms += propose_ms;
-        let before = *timings;
-        let found_before = rounds.found.len();
-        read(rounds, timings);
-        let tally = &mut timings.sources[source.index()];
-        tally.propose_ms += propose_ms;
-        tally.read_ms +=
-            (timings.read_ms + timings.verify_ms) - (before.read_ms + before.verify_ms);
-        tally.reads += timings.reads - before.reads;
-        tally.found += new_markers(&rounds.found, found_before);
     }
 
     /// Whether a source runs: switched on, and some family has what it assumes.
@@ -456,8 +440,7 @@ impl Detector {
             }
             (Source::Stage1, None) => {
                 self.read_selections(params, scene, rounds, timings, false, |r| {
-                    let selected = search.proposals(&r.kept(), &r.failed);
-                    selected.into_iter().filter(|p| r.is_new(p)).collect()
+                    stage1_selection(search, r)
                 });
             }
             (Source::EdgeRefits, None) => {
@@ -480,13 +463,14 @@ impl Detector {
                 rounds.found.extend(reads.into_iter().flatten());
             }
         }
-        timings.propose_ms += propose_ms;
-        let tally = &mut timings.sources[params.source.index()];
-        tally.propose_ms += propose_ms;
-        tally.read_ms +=
-            (timings.read_ms + timings.verify_ms) - (before.read_ms + before.verify_ms);
-        tally.reads += timings.reads - before.reads;
-        tally.found += new_markers(&rounds.found, found_before);
+        file_tally(
+            params.source,
+            propose_ms,
+            &before,
+            found_before,
+            rounds,
+            timings,
+        );
     }
 
     /// Up to `params.selections` selections of a source's quads (`select` picks them given what
@@ -529,6 +513,30 @@ impl Detector {
             rounds.record(batch, reads);
         }
     }
+}
+
+/// Stage 1's next selection: its proposals away from the markers read, less those read already.
+fn stage1_selection(search: &Search, rounds: &Rounds) -> Vec<Proposal> {
+    let selected = search.proposals(&rounds.kept(), &rounds.failed);
+    selected.into_iter().filter(|p| rounds.is_new(p)).collect()
+}
+
+/// Files under `source` what its quads cost and found since `before` (the timings, and the
+/// number of markers found, when it started), with `propose_ms` of its own search.
+fn file_tally(
+    source: Source,
+    propose_ms: f64,
+    before: &Timings,
+    found_before: usize,
+    rounds: &Rounds,
+    timings: &mut Timings,
+) {
+    timings.propose_ms += propose_ms;
+    let tally = &mut timings.sources[source.index()];
+    tally.propose_ms += propose_ms;
+    tally.read_ms += (timings.read_ms + timings.verify_ms) - (before.read_ms + before.verify_ms);
+    tally.reads += timings.reads - before.reads;
+    tally.found += new_markers(&rounds.found, found_before);
 }
 
 /// The markers among `found[before..]` that no read before them covers: what a source read that
