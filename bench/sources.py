@@ -11,7 +11,7 @@ phase): what the detector would lose without it, unless a later source picked th
 import json
 import sys
 
-SOURCES = ["stage1", "outline", "traced", "close-look", "stretched-look", "corner-quads",
+SOURCES = ["stage1", "rings", "outline", "traced", "close-look", "stretched-look", "corner-quads",
            "edge-refits", "cell-reads"]
 
 

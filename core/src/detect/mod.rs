@@ -19,6 +19,7 @@ pub mod plain_net;
 pub mod precheck;
 pub mod refine;
 mod report;
+pub mod rings;
 pub mod stage1;
 pub mod stage2;
 #[cfg(feature = "detect")]

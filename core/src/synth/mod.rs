@@ -490,9 +490,23 @@ fn place_patch(
     ];
     let to_image = Homography::from_points(&roi4(family), &quad)?;
     Ok(Placement {
-        to_image,
+        to_image: Homography(to_image.0 * slot_turn(family, rng)),
         pose: None,
     })
+}
+
+/// A turn of a ring marker about its centre within half a slot either way (identity for other
+/// families). A ring's ROI is found from its ellipse, at whatever turn, and every turn is some
+/// slot shift of the code and a turn within half a slot: the patches show stage 2 those.
+fn slot_turn(family: &Family, rng: &mut ChaCha8Rng) -> nalgebra::Matrix3<f64> {
+    match &family.spec().layout {
+        crate::family::spec::Layout::Rings(rings) if family.rotations().len() > 1 => {
+            let half = std::f64::consts::PI / rings.slots.max(1) as f64;
+            let (s, c) = rng.random_range(-half..half).sin_cos();
+            nalgebra::Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0)
+        }
+        _ => nalgebra::Matrix3::identity(),
+    }
 }
 
 fn place_camera(

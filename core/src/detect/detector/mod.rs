@@ -20,6 +20,7 @@ pub use track::{Frame, TrackParams, Tracker};
 use super::cells::CellReader;
 use super::outline::Outline;
 use super::precheck::PreCheck;
+use super::rings::{ring_quads, RingParams, RingShape};
 use super::stage1::edges::on_edges;
 use super::stage1::group::{nested, same_quad, Proposal};
 use super::stage1::pipeline::Search;
@@ -53,6 +54,8 @@ pub struct FamilyReader {
     pub precheck: Option<PreCheck>,
     /// The dark frame proposals outline, where the family's ROI lies inside it.
     pub(super) outline: Option<Outline>,
+    /// What the ring search looks for (ring families).
+    pub(super) rings: Option<RingShape>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -71,6 +74,8 @@ pub struct DetectorOptions {
     pub refit: RefitParams,
     /// The learned verifier's threshold (the verify phase).
     pub verifier: VerifierParams,
+    /// The ring search's thresholds (ring families).
+    pub rings: RingParams,
 }
 
 impl Default for DetectorOptions {
@@ -84,6 +89,7 @@ impl Default for DetectorOptions {
             accept: AcceptParams::default(),
             refit: RefitParams::default(),
             verifier: VerifierParams::default(),
+            rings: RingParams::default(),
         }
     }
 }
@@ -213,6 +219,7 @@ impl FamilyReader {
         let cells = CellReader::new(&family);
         let precheck = PreCheck::new(&family);
         let outline = Outline::new(&family);
+        let rings = RingShape::of(&family);
         Self {
             family,
             stage2,
@@ -220,6 +227,7 @@ impl FamilyReader {
             cells,
             precheck,
             outline,
+            rings,
         }
     }
 
@@ -287,7 +295,15 @@ impl Detector {
     pub fn detect_with(&self, image: &GrayImage, camera: Option<&Camera>) -> (Vec<Found>, Timings) {
         let mut timings = Timings::default();
         let clock = Stopwatch::start();
-        let search = self.stage1.search(image, &self.options.propose);
+        // Ring families alone need none of stage 1's corners.
+        let search = match self
+            .readers
+            .iter()
+            .any(|r| r.has(Capability::Quadrilateral))
+        {
+            true => self.stage1.search(image, &self.options.propose),
+            false => Search::none(image),
+        };
         let stage1_ms = clock.ms();
         timings.propose_ms += stage1_ms;
         timings.sources[Source::Stage1.index()].propose_ms += stage1_ms;
@@ -389,7 +405,7 @@ impl Detector {
     fn runs(&self, params: &SourceParams) -> bool {
         let propose = &self.options.propose;
         let on = match params.source {
-            Source::Stage1 => true,
+            Source::Stage1 | Source::Rings => true,
             Source::Outline => propose.outline.is_some(),
             Source::Traced => propose.trace.is_some(),
             Source::CloseLook => propose.close_look,
@@ -425,7 +441,7 @@ impl Detector {
                 Some(self.stage1.stretched_look(search, image, &covered, propose))
             }
             Source::CornerQuads => Some(search.corner_quads(image, &covered)),
-            Source::Stage1 | Source::EdgeRefits | Source::CellReads => None,
+            Source::Stage1 | Source::Rings | Source::EdgeRefits | Source::CellReads => None,
         };
         let mut propose_ms = clock.ms();
         match (params.source, outlined) {
@@ -437,6 +453,22 @@ impl Detector {
                 // comes last: past the network's budget, it still gets a cell read.
                 let unread = rounds.fresh_outlined(&quads);
                 rounds.unread.extend(unread);
+            }
+            (Source::Rings, None) => {
+                let clock = Stopwatch::start();
+                let shapes: Vec<RingShape> = self
+                    .readers
+                    .iter()
+                    .filter_map(|r| r.rings.clone())
+                    .collect();
+                let rings = ring_quads(image, &shapes, &self.options.rings);
+                propose_ms += clock.ms();
+                self.read_selections(params, scene, rounds, timings, true, |r| {
+                    (rings.iter())
+                        .filter(|p| r.is_new(p) && !r.over_a_marker_read(p))
+                        .copied()
+                        .collect()
+                });
             }
             (Source::Stage1, None) => {
                 self.read_selections(params, scene, rounds, timings, false, |r| {

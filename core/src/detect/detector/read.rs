@@ -32,6 +32,8 @@ impl FamilyReader {
     pub(super) fn has(&self, capability: Capability) -> bool {
         match capability {
             Capability::Any => true,
+            Capability::Quadrilateral => self.rings.is_none(),
+            Capability::RingsOfDots => self.rings.is_some(),
             Capability::DarkFrame => self.precheck.is_some(),
             Capability::FlatCells => self.cells.is_some(),
             Capability::LightInsideFrame => self.outline.is_some(),

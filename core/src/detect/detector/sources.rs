@@ -11,6 +11,8 @@ use serde::Serialize;
 pub enum Source {
     /// Stage 1's grouping of its corners on every pyramid level.
     Stage1,
+    /// The ellipses round rings of dark dots with a light centre (ring families).
+    Rings,
     /// Quads outlined between stage 1's weaker corners where the image shows their sides.
     Outline,
     /// Quads traced around dark blobs the network's mask or corners mark.
@@ -33,6 +35,7 @@ pub enum Source {
 impl Source {
     pub const ALL: [Source; SOURCES] = [
         Source::Stage1,
+        Source::Rings,
         Source::Outline,
         Source::Traced,
         Source::CloseLook,
@@ -45,6 +48,7 @@ impl Source {
     pub fn name(self) -> &'static str {
         match self {
             Source::Stage1 => "stage1",
+            Source::Rings => "rings",
             Source::Outline => "outline",
             Source::Traced => "traced",
             Source::CloseLook => "close-look",
@@ -61,7 +65,7 @@ impl Source {
 }
 
 /// Number of proposal sources.
-pub const SOURCES: usize = 8;
+pub const SOURCES: usize = 9;
 
 /// What a source assumes of a family's markers: a family without it never reads the source's
 /// quads, and the source does not run when no family has it.
@@ -70,6 +74,11 @@ pub const SOURCES: usize = 8;
 pub enum Capability {
     /// Any family.
     Any,
+    /// The ROI is a quadrilateral whose corners or sides the image shows (every grid family):
+    /// stage 1 and the searches built on its corners and edges.
+    Quadrilateral,
+    /// Rings of dots round a light centre (a rings layout): the ring search.
+    RingsOfDots,
     /// The ROI sits on a dark frame on lighter surroundings (the family has a pre-read check).
     DarkFrame,
     /// Flat black/white cells that can be read straight off the image.
@@ -145,16 +154,25 @@ pub const DEFAULT_SOURCES: [SourceParams; SOURCES] = [
     SourceParams {
         source: Source::Stage1,
         trust: Trust::First,
-        needs: Capability::Any,
+        needs: Capability::Quadrilateral,
         selections: 3,
         budget: None,
         precheck: true,
         retried_rois: 2,
     },
     SourceParams {
+        source: Source::Rings,
+        trust: Trust::First,
+        needs: Capability::RingsOfDots,
+        selections: 1,
+        budget: Some(16),
+        precheck: false,
+        retried_rois: 2,
+    },
+    SourceParams {
         source: Source::Outline,
         trust: Trust::Later,
-        needs: Capability::Any,
+        needs: Capability::Quadrilateral,
         selections: 3,
         budget: Some(4),
         precheck: true,
@@ -172,7 +190,7 @@ pub const DEFAULT_SOURCES: [SourceParams; SOURCES] = [
     SourceParams {
         source: Source::CloseLook,
         trust: Trust::Later,
-        needs: Capability::Any,
+        needs: Capability::Quadrilateral,
         selections: 3,
         budget: Some(4),
         precheck: true,
@@ -181,7 +199,7 @@ pub const DEFAULT_SOURCES: [SourceParams; SOURCES] = [
     SourceParams {
         source: Source::StretchedLook,
         trust: Trust::Later,
-        needs: Capability::Any,
+        needs: Capability::Quadrilateral,
         selections: 3,
         budget: Some(4),
         precheck: true,
@@ -190,7 +208,7 @@ pub const DEFAULT_SOURCES: [SourceParams; SOURCES] = [
     SourceParams {
         source: Source::CornerQuads,
         trust: Trust::Traced,
-        needs: Capability::Any,
+        needs: Capability::Quadrilateral,
         selections: 3,
         budget: Some(4),
         precheck: true,
@@ -199,7 +217,7 @@ pub const DEFAULT_SOURCES: [SourceParams; SOURCES] = [
     SourceParams {
         source: Source::EdgeRefits,
         trust: Trust::Traced,
-        needs: Capability::Any,
+        needs: Capability::Quadrilateral,
         selections: 1,
         budget: Some(8),
         precheck: true,

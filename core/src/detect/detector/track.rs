@@ -4,7 +4,7 @@
 
 use super::read::Batch;
 use super::reconcile::reconcile;
-use super::sources::{SourceParams, Trust, DEFAULT_SOURCES};
+use super::sources::{Capability, SourceParams, Trust, DEFAULT_SOURCES};
 use super::{Detector, Found, Timings};
 use crate::detect::stage1::group::Proposal;
 use crate::detect::stage2::ReadOptions;
@@ -141,6 +141,7 @@ const TRACKED: SourceParams = SourceParams {
     trust: Trust::Later,
     precheck: false,
     retried_rois: 0,
+    needs: Capability::Any,
     ..DEFAULT_SOURCES[0]
 };
 

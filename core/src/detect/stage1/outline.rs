@@ -68,7 +68,7 @@ const RANGE_SHARE: f32 = 0.25;
 
 /// The spread of the image's gray levels: the 98th percentile minus the 2nd, over every other
 /// pixel of every other row.
-pub(super) fn contrast_range(image: &GrayImage) -> f32 {
+pub(crate) fn contrast_range(image: &GrayImage) -> f32 {
     let w = image.width as usize;
     let mut histogram = [0usize; 256];
     let mut count = 0;

@@ -348,6 +348,18 @@ fn select_around(
 }
 
 impl Search {
+    /// A search that found nothing (for a detector with no family stage 1 proposes for).
+    pub fn none(image: &GrayImage) -> Self {
+        Search {
+            levels: Vec::new(),
+            contrast: Contrast::of(image),
+            weak_corners: Vec::new(),
+            outline: None,
+            trace: None,
+            maps: Vec::new(),
+        }
+    }
+
     /// The ROIs selected with the `kept` quads first and without the `rejected` ones, best
     /// first.
     pub fn proposals(&self, kept: &[Proposal], rejected: &[Proposal]) -> Vec<Proposal> {

@@ -258,10 +258,10 @@ struct Traced {
 
 /// A horizontal run of dark pixels `x0..=x1` on row `y`.
 #[derive(Debug, Clone, Copy)]
-struct Run {
-    y: u32,
-    x0: u32,
-    x1: u32,
+pub(crate) struct Run {
+    pub(crate) y: u32,
+    pub(crate) x0: u32,
+    pub(crate) x1: u32,
 }
 
 /// Every dark blob's quad in `image`, clockwise in the image (y down, the order stage 2 takes),
@@ -374,7 +374,7 @@ fn traced_quads(image: &GrayImage, offset: f32, options: &TraceOptions) -> Trace
 /// The runs of pixels darker than their box's mean by the offset, row by row. The box sums come
 /// from running sums (each row's column sums updated by the row entering and the row leaving the
 /// box, then slid along the row), a few operations per pixel.
-fn dark_runs(image: &GrayImage, offset: f32, window: u32) -> Vec<Run> {
+pub(crate) fn dark_runs(image: &GrayImage, offset: f32, window: u32) -> Vec<Run> {
     let (w, h) = (image.width as usize, image.height as usize);
     if w == 0 || h == 0 {
         return Vec::new();
@@ -442,7 +442,7 @@ fn dark_runs(image: &GrayImage, offset: f32, window: u32) -> Vec<Run> {
 
 /// Each run's blob (8-connected: a steep border's pixels often touch only at corners), as
 /// labels 0, 1, … in order of first appearance.
-fn blobs(runs: &[Run]) -> Vec<usize> {
+pub(crate) fn blobs(runs: &[Run]) -> Vec<usize> {
     let mut parent: Vec<usize> = (0..runs.len()).collect();
     fn root(parent: &mut [usize], mut i: usize) -> usize {
         while parent[i] != i {
@@ -505,7 +505,7 @@ fn seen_by_a_camera(quad: &Quad) -> bool {
 
 /// The convex hull, clockwise in the image (y down), without collinear points (Andrew's
 /// monotone chain).
-fn convex_hull(mut points: Vec<[f64; 2]>) -> Vec<[f64; 2]> {
+pub(crate) fn convex_hull(mut points: Vec<[f64; 2]>) -> Vec<[f64; 2]> {
     points.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
     points.dedup();
     if points.len() < 3 {

@@ -131,13 +131,17 @@ pub fn read_slots(
     found: &[Found],
 ) -> (Vec<Option<usize>>, Vec<f64>) {
     let admitted = slot_categories(family);
+    let absent = absent_category(family);
     sorted
         .slots
         .iter()
         .zip(&admitted)
         .map(|(s, allowed)| {
             let Some(f) = *s else {
-                return (None, 0.0);
+                return match absent.filter(|c| allowed.contains(c)) {
+                    Some(c) => (Some(c), ABSENT_RELIABILITY),
+                    None => (None, 0.0),
+                };
             };
             let votes = &found[f].votes;
             let Some(best) = allowed
@@ -156,4 +160,23 @@ pub fn read_slots(
             (Some(best), share)
         })
         .unzip()
+}
+
+/// How sure a ring slot where no keypoint was found is read as empty (see [`absent_category`]):
+/// more than a coin flip, so that a dot the network missed costs the decoder less than a
+/// whole error.
+pub const ABSENT_RELIABILITY: f64 = 0.75;
+
+/// The category a slot of a rings layout shows by having nothing in it (RuneTag's empty slot),
+/// if the family has one. The network is trained to place such keypoints too, but there is
+/// nothing to see at them but the spacing of the dots around; where it places none, the
+/// template still says where the slot is, and an empty slot is what the image shows there.
+/// A grid's light cell is seen against its dark neighbours and is left to the network.
+pub fn absent_category(family: &Family) -> Option<usize> {
+    if !matches!(family.spec().layout, crate::family::spec::Layout::Rings(_)) {
+        return None;
+    }
+    (family.spec().categories.iter()).position(|c| {
+        c.primitives.is_empty() && matches!(c.role, crate::family::spec::Role::Symbol(_))
+    })
 }
