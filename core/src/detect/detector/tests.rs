@@ -831,3 +831,42 @@ fn close_steep_standard41h12_markers_are_found_by_the_traced_search_on_the_inver
     );
     assert!(without < with_traced, "{without} of {with_traced}");
 }
+
+/// A detector of a ring family alone proposes from the ring search, spends nothing on stage 1
+/// or the searches built on its corners, and sends each ring it finds to stage 2 once.
+#[test]
+fn a_ring_family_is_proposed_by_the_ring_search_alone() {
+    use crate::detect::stage2::model_file;
+    use crate::detect::stage2::net::NetConfig;
+    let family = crate::builtin::get("runetag").unwrap().unwrap();
+    let config = NetConfig {
+        classes: family.spec().categories.len() + 1,
+        width: 8,
+        patch: crate::detect::stage2::anchors::PatchSpec::for_family(&family).size as usize,
+    };
+    let device = burn::tensor::Device::flex();
+    let untrained = model_file::to_bytes(config.init(&device), &config, &family, 0).unwrap();
+    let stage2 = Stage2::from_bytes(&untrained, "untrained", &family).unwrap();
+    let detector = Detector::new(
+        Stage1::shipped().unwrap(),
+        vec![FamilyReader::new(family.clone(), stage2)],
+    )
+    .unwrap();
+    let mut scenes = camera_scenes();
+    scenes.view_angle_deg = [0.0, 20.0];
+    let (mut rings, mut passes) = (0, 0);
+    for seed in 0..3 {
+        let sample = crate::synth::synthesize(&family, &scenes, seed).unwrap();
+        let (_, timings) = detector.detect(&sample.image);
+        for source in Source::ALL {
+            let tally = timings.source(source);
+            if source != Source::Rings {
+                assert_eq!(tally.proposals, 0, "{source:?} {tally:?}");
+            }
+        }
+        rings += timings.source(Source::Rings).proposals;
+        passes += timings.passes;
+    }
+    assert!(rings >= 2, "{rings} rings in 6 markers");
+    assert!(passes >= rings, "{passes} passes for {rings} rings");
+}

@@ -250,3 +250,35 @@ fn every_shipped_model_is_a_listed_asset_for_its_family() {
         );
     }
 }
+
+/// A RuneTag patch whose network found only the dots still reads its ID: the template places
+/// the empty slots and nothing there reads as empty. A grid's light cells are not read so.
+#[test]
+fn ring_slots_with_nothing_found_read_as_empty() {
+    use super::decode::read_patch;
+    use super::sort::absent_category;
+    assert_eq!(
+        absent_category(&builtin::get("apriltag-36h11").unwrap().unwrap()),
+        None
+    );
+    let family = builtin::get("runetag").unwrap().unwrap();
+    let empty = absent_category(&family).expect("RuneTag's empty slot");
+    let spec = PatchSpec::for_family(&family);
+    let mut config = SynthConfig::new(Mode::Patch);
+    config.width = spec.size;
+    config.height = spec.size;
+    for seed in 0..4u64 {
+        let sample = synthesize(&family, &config, seed).unwrap();
+        let truth = &sample.truth.markers[0];
+        let dots: Vec<KeypointTruth> = (truth.keypoints.iter())
+            .filter(|k| k.category != empty)
+            .cloned()
+            .collect();
+        assert!(dots.len() < truth.keypoints.len());
+        let targets = encode(&spec, &dots, &truth.roi, &truth.mask);
+        let raw = RawOutputs::from_targets(&targets, family.categories().len() + 1);
+        let reading = read_patch(&family, &spec, &raw).expect("the dots place the template");
+        let decoded = reading.decoded.expect("decodes");
+        assert_eq!(decoded.id, truth.id, "seed {seed}");
+    }
+}
