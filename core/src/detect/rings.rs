@@ -14,7 +14,7 @@
 
 use super::stage1::group::Proposal;
 use super::stage1::outline::contrast_range;
-use super::stage1::traced::{blobs, convex_hull, dark_runs, Run};
+use super::stage1::traced::{blobs, convex_hull, dark_runs, Run, MIN_OFFSET};
 use crate::family::spec::Layout;
 use crate::family::Family;
 use crate::geometry::Quad;
@@ -254,15 +254,15 @@ pub fn ring_quads(image: &GrayImage, shapes: &[RingShape], params: &RingParams) 
     if shapes.is_empty() || image.width < 8 || image.height < 8 {
         return Vec::new();
     }
-    let offset = (params.offset * contrast_range(image)).max(4.0);
+    let offset = (params.offset * contrast_range(image)).max(MIN_OFFSET);
     let runs = dark_runs(image, offset, params.window);
     let labels = blobs(&runs);
     let blob_count = labels.iter().map(|&l| l + 1).max().unwrap_or(0);
     let mut blob_list = vec![Blob::default(); blob_count];
     for (run, &l) in runs.iter().zip(&labels) {
         let b = &mut blob_list[l];
-        let length = (run.x1 - run.x0 + 1) as f64;
-        b.pixels += (run.x1 - run.x0 + 1) as usize;
+        let length = run.len() as f64;
+        b.pixels += run.len();
         b.sum[0] += length * (run.x0 + run.x1) as f64 / 2.0;
         b.sum[1] += length * run.y as f64;
     }
@@ -302,20 +302,13 @@ pub fn ring_quads(image: &GrayImage, shapes: &[RingShape], params: &RingParams) 
         let mut found = None;
         for round in 0..GROW_ROUNDS {
             let last = round + 1 == GROW_ROUNDS;
-            let members = gather(
-                &ellipse,
-                if round == 0 {
-                    1.0
-                } else if last {
-                    1.05
-                } else {
-                    1.2
-                },
-            );
-            let pixels: usize = members
-                .iter()
-                .map(|(r, _)| (r.x1 - r.x0 + 1) as usize)
-                .sum();
+            let within = match round {
+                0 => 1.0,
+                _ if last => GATHER_LAST,
+                _ => GATHER_GROWING,
+            };
+            let members = gather(&ellipse, within);
+            let pixels: usize = members.iter().map(|(r, _)| r.len()).sum();
             if pixels < params.min_pixels {
                 break;
             }
@@ -366,6 +359,12 @@ const FIRST_REACH: f64 = 1.8;
 
 /// Fits of a ring's ellipse, each from the blobs within the last.
 const GROW_ROUNDS: usize = 4;
+
+/// The blobs each fit after the first takes in, by their centres' radius on the last fit: a
+/// fifth beyond it while the ring grows along a steep view's far sides, then to just past the
+/// outer dots' centres (0.95 of the hull's radius) and short of the quiet zone's edge.
+const GATHER_GROWING: f64 = 1.2;
+const GATHER_LAST: f64 = 1.05;
 
 /// Rays cast from a light centre, and the shares of them that must find the ring.
 const RAYS: usize = 32;
@@ -505,14 +504,8 @@ fn hull_ellipse(runs: &[(&Run, usize)], max_residual: f64, params: &RingParams) 
     let mut corners: std::collections::HashMap<usize, Vec<[f64; 2]>> = Default::default();
     let mut pixels: std::collections::HashMap<usize, usize> = Default::default();
     for (run, label) in runs {
-        let (y, left, right) = (run.y as f64, run.x0 as f64 - 0.5, run.x1 as f64 + 0.5);
-        (corners.entry(*label).or_default()).extend([
-            [left, y - 0.5],
-            [right, y - 0.5],
-            [right, y + 0.5],
-            [left, y + 0.5],
-        ]);
-        *pixels.entry(*label).or_default() += (run.x1 - run.x0 + 1) as usize;
+        (corners.entry(*label).or_default()).extend(run.corners());
+        *pixels.entry(*label).or_default() += run.len();
     }
     let total: usize = pixels.values().sum();
     let mut owner: std::collections::HashMap<[i64; 2], usize> = Default::default();
@@ -603,7 +596,7 @@ fn ring_roi(
     for (run, _) in runs {
         for x in run.x0..=run.x1 {
             let r = hull.radius([x as f64, run.y as f64]);
-            if r < 0.85 * hollow {
+            if r < HOLLOW_CORE * hollow {
                 in_hollow += 1;
             } else if r <= 1.0 {
                 in_band += 1;
@@ -611,7 +604,7 @@ fn ring_roi(
             }
         }
     }
-    let hollow_area = hull.area(0.85 * hollow);
+    let hollow_area = hull.area(HOLLOW_CORE * hollow);
     let band_area = hull.area(1.0) - hull.area(hollow);
     if in_hollow as f64 > params.max_hollow_dark * hollow_area
         || (in_band as f64) < params.min_band_dark * band_area
@@ -622,11 +615,12 @@ fn ring_roi(
     let dots = band_gray / in_band.max(1) as f64;
     let centre = median_on_circles(image, hull, &hull_map, &[0.3 * hollow, 0.6 * hollow]);
     // The quiet zone: past the dots' outer edge, short of the paper's.
-    let quiet = median_on_circles(image, hull, &hull_map, &[1.06, 1.1]);
+    let quiet = median_on_circles(image, hull, &hull_map, &QUIET_ZONE);
     let (Some(centre), Some(quiet)) = (centre, quiet) else {
         return None;
     };
-    if centre - dots < 4.0 || quiet < dots + params.min_quiet_light * (centre - dots) {
+    if centre - dots < MIN_OFFSET as f64 || quiet < dots + params.min_quiet_light * (centre - dots)
+    {
         return None;
     }
     // The outer ring's ellipse: the hull's, scaled in from the dots' outer edge, then fitted
@@ -636,7 +630,6 @@ fn ring_roi(
         q: hull.q * (shape.outer * shape.outer),
     };
     let mut labels: Vec<usize> = runs.iter().map(|(_, l)| *l).collect();
-    labels.dedup();
     labels.sort_unstable();
     labels.dedup();
     let centres: Vec<[f64; 2]> = labels.iter().map(|&l| blob_list[l].centroid()).collect();
@@ -659,6 +652,14 @@ fn ring_roi(
         corner(-1.0, 1.0),
     ]))
 }
+
+/// The part of a ring's hollow that must be light, as a share of its radius: the dots' inner
+/// edge is blurred and thresholded a little inwards.
+const HOLLOW_CORE: f64 = 0.85;
+
+/// Where the quiet zone is sampled, in radii of the hull's ellipse: past the dots' outer edge
+/// (1), short of the paper's edge (RuneTag: 1.2 outer radii, 1.14 of the hull's).
+const QUIET_ZONE: [f64; 2] = [1.06, 1.1];
 
 /// The ellipse of the outer ring (radius 1) whose concentric copies at `levels` pass through the
 /// most of `centres` (the dots'), from `start`: each centre is given the level nearest its radius

@@ -73,7 +73,7 @@ impl Default for TraceOptions {
 
 /// The least offset, in gray levels, however flat the image: below it sensor noise alone makes
 /// pixels dark.
-const MIN_OFFSET: f32 = 4.0;
+pub(crate) const MIN_OFFSET: f32 = 4.0;
 
 /// The most one side of a quad may exceed its opposite side, as a ratio. Opposite sides of a
 /// square in perspective differ as the depths of their ends do, so only a marker close to the
@@ -264,6 +264,21 @@ pub(crate) struct Run {
     pub(crate) x1: u32,
 }
 
+impl Run {
+    /// Its pixels.
+    pub(crate) fn len(&self) -> usize {
+        (self.x1 - self.x0 + 1) as usize
+    }
+
+    /// The corners of its pixels' squares, x0 − ½ … x1 + ½ by y − ½ … y + ½ (the only points
+    /// of the run a convex hull can pass through).
+    pub(crate) fn corners(&self) -> [[f64; 2]; 4] {
+        let (left, right) = (self.x0 as f64 - 0.5, self.x1 as f64 + 0.5);
+        let (top, bottom) = (self.y as f64 - 0.5, self.y as f64 + 0.5);
+        [[left, top], [right, top], [right, bottom], [left, bottom]]
+    }
+}
+
 /// Every dark blob's quad in `image`, clockwise in the image (y down, the order stage 2 takes),
 /// largest first, and where a blob over the middle runs out of the image. Image coordinates put
 /// pixel centres on integers. `offset`: how much darker than its box's mean a dark pixel is, in
@@ -325,10 +340,7 @@ fn traced_quads(image: &GrayImage, offset: f32, options: &TraceOptions) -> Trace
     // extremes, flushed as its next row starts (runs come row by row).
     let mut row_span: Vec<Option<(u32, u32, u32)>> = vec![None; outlines.len()];
     let flush = |outline: &mut Vec<[f64; 2]>, (y, x0, x1): (u32, u32, u32)| {
-        // The row's pixel squares: x0 − ½ … x1 + ½, y − ½ … y + ½.
-        let (left, right) = (x0 as f64 - 0.5, x1 as f64 + 0.5);
-        let (top, bottom) = (y as f64 - 0.5, y as f64 + 0.5);
-        outline.extend([[left, top], [right, top], [right, bottom], [left, bottom]]);
+        outline.extend(Run { y, x0, x1 }.corners());
     };
     for (run, &l) in runs.iter().zip(&labels) {
         let b = index[l];

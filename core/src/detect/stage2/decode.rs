@@ -28,12 +28,13 @@ pub struct PatchReading {
 pub fn read_patch(family: &Family, spec: &PatchSpec, raw: &RawOutputs) -> Option<PatchReading> {
     let found = extract(spec, raw, MIN_CONFIDENCE);
     let corners = raw.template_corners(spec);
+    let slot_turns = slot_turns(family);
     let mut best: Option<PatchReading> = None;
     for turn in 0..turns_to_try(family) {
         let turned = Quad(std::array::from_fn(|k| corners[(k + turn) % 4]));
         // The turn within a slot that matches the most keypoints is the one decoded.
-        let Some(sorted) = (slot_turns(family).into_iter())
-            .filter_map(|angle| {
+        let Some(sorted) = (slot_turns.iter())
+            .filter_map(|&angle| {
                 sort_to_template(family, &found, &turned_about_centre(&turned, angle))
             })
             .max_by_key(|s| s.matched())
@@ -93,8 +94,7 @@ fn turned_about_centre(quad: &Quad, angle: f64) -> Quad {
 /// alone (RuneTag+: its ring proposals put a mark on each corner, but not which), where no
 /// rotation of the layout tells them apart for the decoder; one otherwise.
 fn turns_to_try(family: &Family) -> usize {
-    let rings = matches!(family.spec().layout, crate::family::spec::Layout::Rings(_));
-    if rings && family.rotations().len() == 1 {
+    if !family.is_grid() && family.rotations().len() == 1 {
         4
     } else {
         1

@@ -173,7 +173,7 @@ pub const ABSENT_RELIABILITY: f64 = 0.75;
 /// template still says where the slot is, and an empty slot is what the image shows there.
 /// A grid's light cell is seen against its dark neighbours and is left to the network.
 pub fn absent_category(family: &Family) -> Option<usize> {
-    if !matches!(family.spec().layout, crate::family::spec::Layout::Rings(_)) {
+    if family.is_grid() {
         return None;
     }
     (family.spec().categories.iter()).position(|c| {

@@ -13,6 +13,14 @@ fn turn(p: [f64; 2], size: u32, quarter: usize) -> [f64; 2] {
 /// Encoding the ground truth as targets and decoding what a perfect network would output gives
 /// back every keypoint at its exact position with its category, and the marker's ID, for grids
 /// and rings, upright and turned.
+/// Synthesis of single-marker patches the size of `spec`'s.
+fn patches_of(spec: &PatchSpec) -> SynthConfig {
+    let mut config = SynthConfig::new(Mode::Patch);
+    config.width = spec.size;
+    config.height = spec.size;
+    config
+}
+
 #[test]
 fn targets_decode_to_the_ground_truth() {
     for name in [
@@ -26,9 +34,7 @@ fn targets_decode_to_the_ground_truth() {
         let family = builtin::get(name).unwrap().unwrap();
         let spec = PatchSpec::for_family(&family);
         assert_eq!(spec.margin, family.spec().roi.margin, "{name}");
-        let mut config = SynthConfig::new(Mode::Patch);
-        config.width = spec.size;
-        config.height = spec.size;
+        let config = patches_of(&spec);
         for seed in 0..6u64 {
             let sample = synthesize(&family, &config, seed).unwrap();
             let truth = &sample.truth.markers[0];
@@ -264,9 +270,7 @@ fn ring_slots_with_nothing_found_read_as_empty() {
     let family = builtin::get("runetag").unwrap().unwrap();
     let empty = absent_category(&family).expect("RuneTag's empty slot");
     let spec = PatchSpec::for_family(&family);
-    let mut config = SynthConfig::new(Mode::Patch);
-    config.width = spec.size;
-    config.height = spec.size;
+    let config = patches_of(&spec);
     for seed in 0..4u64 {
         let sample = synthesize(&family, &config, seed).unwrap();
         let truth = &sample.truth.markers[0];
