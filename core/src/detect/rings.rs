@@ -634,22 +634,18 @@ fn ring_roi(
     labels.dedup();
     let centres: Vec<[f64; 2]> = labels.iter().map(|&l| blob_list[l].centroid()).collect();
     let ring = concentric_fit(&centres, &start, &shape.levels, params)?;
-    let map = ring.unit_map()?;
+    let plane = RingPlane::affine(&ring)?.refined(&centres, &shape.levels);
     let turn = shape
         .marks
-        .and_then(|(at, size)| marks_turn(&ring, &map, at, size, blob_list))
+        .and_then(|(at, size)| marks_turn(&plane, at, size, blob_list))
         .unwrap_or(0.0);
     let (s, c) = turn.sin_cos();
-    let corner = |u: f64, v: f64| {
-        let turned = Vector2::new(c * u - s * v, s * u + c * v);
-        let p = ring.centre + map * turned;
-        [p[0], p[1]]
-    };
+    let corner = |u: f64, v: f64| plane.to_image(Vector2::new(c * u - s * v, s * u + c * v));
     Some(Quad([
-        corner(-1.0, -1.0),
-        corner(1.0, -1.0),
-        corner(1.0, 1.0),
-        corner(-1.0, 1.0),
+        corner(-1.0, -1.0)?,
+        corner(1.0, -1.0)?,
+        corner(1.0, 1.0)?,
+        corner(-1.0, 1.0)?,
     ]))
 }
 
@@ -734,6 +730,168 @@ fn concentric_fit(
     })
 }
 
+/// A ring marker's plane as the image shows it: a marker point u (in outer-ring radii, about
+/// its centre) is seen at p where u = S (p − c) / (1 + vᵀ(p − c)). `c` is the image of the
+/// marker's centre, S (symmetric) its affine view, v the perspective's tilt. A turn about the
+/// centre is left out: it does not move a dot off its ring.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct RingPlane {
+    centre: Vector2<f64>,
+    s: Matrix2<f64>,
+    tilt: Vector2<f64>,
+}
+
+impl RingPlane {
+    /// The affine view of `ring` (the outer ring's ellipse): no tilt.
+    fn affine(ring: &Ellipse) -> Option<Self> {
+        let s = ring.unit_map()?.try_inverse()?;
+        Some(Self {
+            centre: ring.centre,
+            s,
+            tilt: Vector2::zeros(),
+        })
+    }
+
+    fn to_marker(&self, p: [f64; 2]) -> Vector2<f64> {
+        let d = Vector2::new(p[0], p[1]) - self.centre;
+        self.s * d / (1.0 + self.tilt.dot(&d))
+    }
+
+    fn to_image(&self, u: Vector2<f64>) -> Option<[f64; 2]> {
+        let d = (self.s - u * self.tilt.transpose()).try_inverse()? * u;
+        let p = self.centre + d;
+        Some([p[0], p[1]])
+    }
+
+    /// The plane whose concentric circles at `levels` pass through the most of `centres` (the
+    /// dots'), refined from `self` by damped Gauss–Newton on each dot's distance to its ring:
+    /// under perspective the rings' ellipses are neither concentric nor scaled copies, and an
+    /// affine fit leaves the ROI's far side short and its centre off the marker's. Kept only
+    /// when it fits the dots better than `self` does and the plane stays in front of the
+    /// camera across the marker.
+    fn refined(&self, centres: &[[f64; 2]], levels: &[f64]) -> Self {
+        let scale = self.s.determinant().abs().max(f64::MIN_POSITIVE).powf(-0.5);
+        // In units of the outer ring's radius about the start's centre, so that the steps
+        // of all seven parameters are of one size.
+        let origin = self.centre;
+        let local: Vec<Vector2<f64>> = centres
+            .iter()
+            .map(|p| (Vector2::new(p[0], p[1]) - origin) / scale)
+            .collect();
+        let start = Self {
+            centre: Vector2::zeros(),
+            s: self.s * scale,
+            tilt: Vector2::zeros(),
+        };
+        let nearest = |r: f64| {
+            (levels.iter().copied())
+                .min_by(|a, b| (a - r).abs().total_cmp(&(b - r).abs()))
+                .unwrap_or(1.0)
+        };
+        let on_rings = |plane: &Self| -> Vec<(Vector2<f64>, f64)> {
+            local
+                .iter()
+                .filter_map(|&x| {
+                    let r = plane.to_marker([x[0], x[1]]).norm();
+                    let level = nearest(r);
+                    ((r - level).abs() <= LEVEL_TOLERANCE).then_some((x, level))
+                })
+                .collect()
+        };
+        let cost = |plane: &Self, dots: &[(Vector2<f64>, f64)]| -> f64 {
+            dots.iter()
+                .map(|(x, level)| (plane.to_marker([x[0], x[1]]).norm() - level).powi(2))
+                .sum()
+        };
+        let dots = on_rings(&start);
+        if dots.len() < 2 * TILT_PARAMETERS {
+            return *self;
+        }
+        let first_cost = cost(&start, &dots);
+        let mut plane = start;
+        let mut damping = 1e-3;
+        for _ in 0..TILT_ITERATIONS {
+            let (mut normal, mut gradient) = (
+                nalgebra::SMatrix::<f64, TILT_PARAMETERS, TILT_PARAMETERS>::zeros(),
+                nalgebra::SVector::<f64, TILT_PARAMETERS>::zeros(),
+            );
+            for (x, level) in &dots {
+                let d = x - plane.centre;
+                let w = 1.0 + plane.tilt.dot(&d);
+                let u = plane.s * d / w;
+                let r = u.norm().max(1e-12);
+                let along = u / r;
+                // ∂u/∂S for S = [a b; b e], ∂u/∂v and ∂u/∂c, each projected on u's direction.
+                let toward_centre = -(plane.s - u * plane.tilt.transpose()) / w;
+                let row = nalgebra::SVector::<f64, TILT_PARAMETERS>::from_column_slice(&[
+                    along[0] * d[0] / w,
+                    (along[0] * d[1] + along[1] * d[0]) / w,
+                    along[1] * d[1] / w,
+                    -along.dot(&u) * d[0] / w,
+                    -along.dot(&u) * d[1] / w,
+                    (along.transpose() * toward_centre)[0],
+                    (along.transpose() * toward_centre)[1],
+                ]);
+                normal += row * row.transpose();
+                gradient += row * (r - level);
+            }
+            let mut improved = false;
+            while damping < 1e6 {
+                let mut damped = normal;
+                for k in 0..TILT_PARAMETERS {
+                    damped[(k, k)] *= 1.0 + damping;
+                }
+                let Some(step) = damped.try_inverse().map(|m| -(m * gradient)) else {
+                    break;
+                };
+                let trial = Self {
+                    s: plane.s + Matrix2::new(step[0], step[1], step[1], step[2]),
+                    tilt: plane.tilt + Vector2::new(step[3], step[4]),
+                    centre: plane.centre + Vector2::new(step[5], step[6]),
+                };
+                if cost(&trial, &dots) < cost(&plane, &dots) {
+                    plane = trial;
+                    damping = (damping / 10.0).max(1e-9);
+                    improved = true;
+                    break;
+                }
+                damping *= 10.0;
+            }
+            if !improved {
+                break;
+            }
+        }
+        // In front of the camera over the whole ROI: 1 + vᵀd stays well above nought at its
+        // corners.
+        let in_front = [[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]]
+            .iter()
+            .all(|&[a, b]| {
+                plane.to_image(Vector2::new(a, b)).is_some_and(|p| {
+                    1.0 + plane.tilt.dot(&(Vector2::new(p[0], p[1]) - plane.centre))
+                        > MIN_DEPTH_RATIO
+                })
+            });
+        if !in_front || cost(&plane, &dots) >= first_cost {
+            return *self;
+        }
+        Self {
+            centre: origin + plane.centre * scale,
+            s: plane.s / scale,
+            tilt: plane.tilt / scale,
+        }
+    }
+}
+
+/// S's three entries, the tilt's two and the centre's two.
+const TILT_PARAMETERS: usize = 7;
+
+/// Gauss–Newton steps of the perspective fit at most.
+const TILT_ITERATIONS: usize = 20;
+
+/// The least ratio of a ROI corner's depth to the centre's the perspective fit may leave: a
+/// ring seen so steeply that its far corner is three times as far is past what stage 2 reads.
+const MIN_DEPTH_RATIO: f64 = 0.33;
+
 /// Rounds of giving each dot its level and fitting the rings again.
 const LEVEL_ROUNDS: usize = 4;
 
@@ -771,18 +929,11 @@ fn median_on_circles(
     Some(*grays.select_nth_unstable(middle).1 as f64)
 }
 
-/// The turn (radians, in marker units as `map` leaves them) that puts the ROI's corners on the
-/// orientation marks round `ring`: blobs of about the marks' size whose centres lie about `at`
+/// The turn (radians, in marker units as `plane` leaves them) that puts the ROI's corners on the
+/// orientation marks round the ring: blobs of about the marks' size whose centres lie about `at`
 /// outer radii from the centre, at least three of them a quarter turn apart.
-fn marks_turn(
-    ring: &Ellipse,
-    map: &Matrix2<f64>,
-    at: f64,
-    size: f64,
-    blob_list: &[Blob],
-) -> Option<f64> {
-    let inverse = map.try_inverse()?;
-    let unit_pixels = map.determinant().abs();
+fn marks_turn(plane: &RingPlane, at: f64, size: f64, blob_list: &[Blob]) -> Option<f64> {
+    let unit_pixels = 1.0 / plane.s.determinant().abs().max(f64::MIN_POSITIVE);
     // A mark is at most a disc of `size` across (a cross covers less of its square).
     let most = std::f64::consts::PI * (size / 2.0).powi(2) * unit_pixels * 2.0;
     let least = 0.1 * most;
@@ -792,8 +943,7 @@ fn marks_turn(
         if pixels < least.max(2.0) || pixels > most {
             continue;
         }
-        let c = blob.centroid();
-        let u = inverse * (Vector2::new(c[0], c[1]) - ring.centre);
+        let u = plane.to_marker(blob.centroid());
         let r = u.norm();
         if (r - at).abs() > 0.2 * at {
             continue;
@@ -949,6 +1099,63 @@ mod tests {
         assert!((e.minor_axis() - 24.0).abs() < 1e-6);
         let m = e.unit_map().unwrap();
         assert!((m * m.transpose() - e.q.try_inverse().unwrap()).norm() < 1e-9);
+    }
+
+    #[test]
+    fn dots_seen_in_perspective_give_the_roi_corners_and_centre_of_the_marker_plane() {
+        // A ring of 60 px radius tilted so that its far side is a third farther than its
+        // near side: the rings' ellipses are no longer concentric.
+        let truth = RingPlane {
+            centre: Vector2::new(320.0, 240.0),
+            s: Matrix2::new(1.0 / 60.0, 0.002, 0.002, 1.0 / 45.0),
+            tilt: Vector2::new(0.001, -0.002),
+        };
+        let levels = [2.0 / 3.0, 5.0 / 6.0, 1.0];
+        let centres: Vec<[f64; 2]> = (0..43 * 3)
+            .filter(|k| k % 3 == 0 || k % 5 == 1)
+            .filter_map(|k| {
+                let t = (k / 3) as f64 * std::f64::consts::TAU / 43.0;
+                truth.to_image(Vector2::new(t.cos(), t.sin()) * levels[k % 3])
+            })
+            .collect();
+        let outer: Vec<[f64; 2]> = (0..40)
+            .filter_map(|k| {
+                let t = k as f64 * std::f64::consts::TAU / 40.0;
+                truth.to_image(Vector2::new(t.cos(), t.sin()))
+            })
+            .collect();
+        let start = fit_ellipse(&outer).unwrap();
+        let ring = concentric_fit(&centres, &start, &levels, &RingParams::default()).unwrap();
+        let affine = RingPlane::affine(&ring).unwrap();
+        let fitted = affine.refined(&centres, &levels);
+        let miss = |plane: &RingPlane| {
+            [
+                [-1.0, -1.0],
+                [1.0, -1.0],
+                [1.0, 1.0],
+                [-1.0, 1.0],
+                [0.0, 0.0],
+            ]
+            .iter()
+            .map(|&[a, b]| {
+                let (p, q) = (
+                    plane.to_image(Vector2::new(a, b)).unwrap(),
+                    truth.to_image(Vector2::new(a, b)).unwrap(),
+                );
+                ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)).sqrt()
+            })
+            .fold(0.0, f64::max)
+        };
+        assert!(
+            miss(&affine) > 3.0,
+            "the affine fit misses by {}",
+            miss(&affine)
+        );
+        assert!(
+            miss(&fitted) < 1e-3,
+            "{fitted:?} misses by {}",
+            miss(&fitted)
+        );
     }
 
     #[test]

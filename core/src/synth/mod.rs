@@ -246,6 +246,9 @@ pub fn image_seed(seed: u64, index: u64) -> u64 {
 /// A marker's placement: marker units → undistorted image pixels.
 struct Placement {
     to_image: Homography,
+    /// Where the ROI is taken from when it is not `to_image` (a cyclic ring marker drawn turned
+    /// within a ROI that stays put, see [`ring_turn`]).
+    roi_to_image: Option<Homography>,
     pose: Option<(Pose, f64)>,
 }
 
@@ -464,6 +467,7 @@ fn place_quad(
     let to_image = Homography::from_points(&roi4(family), &quad)?;
     Ok(Placement {
         to_image,
+        roi_to_image: None,
         pose: None,
     })
 }
@@ -489,24 +493,27 @@ fn place_patch(
         [a[6] * w, (1.0 - a[7]) * h],
     ];
     let to_image = Homography::from_points(&roi4(family), &quad)?;
+    let turn = ring_turn(family, rng);
     Ok(Placement {
-        to_image: Homography(to_image.0 * slot_turn(family, rng)),
+        to_image: Homography(to_image.0 * turn),
+        roi_to_image: (turn != nalgebra::Matrix3::identity()).then_some(to_image),
         pose: None,
     })
 }
 
-/// A turn of a ring marker about its centre within half a slot either way (identity for other
-/// families). A ring's ROI is found from its ellipse, at whatever turn, and every turn is some
-/// slot shift of the code and a turn within half a slot: the patches show stage 2 those.
-fn slot_turn(family: &Family, rng: &mut ChaCha8Rng) -> nalgebra::Matrix3<f64> {
-    match &family.spec().layout {
-        crate::family::spec::Layout::Rings(rings) if family.rotations().len() > 1 => {
-            let half = std::f64::consts::PI / rings.slots.max(1) as f64;
-            let (s, c) = rng.random_range(-half..half).sin_cos();
-            nalgebra::Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0)
-        }
-        _ => nalgebra::Matrix3::identity(),
+/// A turn of a cyclic ring marker about its centre, anywhere round the circle (identity for
+/// other families, which draw no random number for it). The ring search finds a ring's ROI from
+/// its ellipse at whatever turn, so the patch shows the marker, its paper and its code turned
+/// within a ROI that stays on the template's corners; a network shown only upright rings misses
+/// most of their dots once they are turned by an eighth.
+fn ring_turn(family: &Family, rng: &mut ChaCha8Rng) -> nalgebra::Matrix3<f64> {
+    if family.is_grid() || family.rotations().len() < 2 {
+        return nalgebra::Matrix3::identity();
     }
+    let (s, c) = rng
+        .random_range(-std::f64::consts::PI..std::f64::consts::PI)
+        .sin_cos();
+    nalgebra::Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0)
 }
 
 fn place_camera(
@@ -523,6 +530,7 @@ fn place_camera(
     let pose = random_pose(rng, camera, distance, view);
     Ok(Placement {
         to_image: camera_homography(family, camera, &pose, side),
+        roi_to_image: None,
         pose: Some((pose, side)),
     })
 }
@@ -767,7 +775,19 @@ fn marker_truth(
         id,
         family: None,
         bbox: bounding_box(&mask),
-        roi: family.roi_points().iter().map(|&p| project(p)).collect(),
+        roi: family
+            .roi_points()
+            .iter()
+            .map(|&p| {
+                to_pixel(
+                    placement
+                        .roi_to_image
+                        .as_ref()
+                        .unwrap_or(&placement.to_image)
+                        .apply(p),
+                )
+            })
+            .collect(),
         keypoints,
         mask,
         pose: placement.pose.map(|(pose, side_m)| PoseTruth {

@@ -130,9 +130,12 @@ fn camera_cut(
         return Ok(None);
     }
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5EED_0FC0);
+    let Some(seen_roi) = ring_roi_turned(family, &truth.roi, &mut rng) else {
+        return Ok(None);
+    };
     let sigma = rng.random_range(0.0..CUT_ROI_ERROR_PX);
     let roi = Quad(std::array::from_fn(|i| {
-        let [x, y] = truth.roi[i];
+        let [x, y] = seen_roi[i];
         // A sum of uniforms is close enough to a normal error here.
         let mut off = || (0..3).map(|_| rng.random_range(-1.0..1.0)).sum::<f64>() * sigma;
         [x + off(), y + off()]
@@ -144,10 +147,39 @@ fn camera_cut(
         return Ok(None);
     };
     let patch = warp_bilinear(&sample.image, &to_image, spec.size, spec.size, 128);
+    let truth = MarkerTruth {
+        roi: seen_roi,
+        ..truth
+    };
     let truth = mapped(truth, |p| to_patch.apply(p));
     let bbox = bounding_box(&truth.mask);
     let truth = MarkerTruth { bbox, ..truth };
     Ok(Some((patch, truth)))
+}
+
+/// The ROI a ring search may give a cyclic ring marker whose true ROI is `roi`: the same
+/// square round its outer ring, turned about its centre by a random angle (the ring's ellipse
+/// fixes no turn). Other families' ROIs are returned as they are, drawing no random number.
+/// `None` when the ROI is degenerate.
+fn ring_roi_turned(
+    family: &Family,
+    roi: &[[f64; 2]],
+    rng: &mut ChaCha8Rng,
+) -> Option<Vec<[f64; 2]>> {
+    if family.is_grid() || family.rotations().len() < 2 {
+        return Some(roi.to_vec());
+    }
+    let units = family.roi_points();
+    let to_image = Homography::from_points(&units[..4], &roi[..4]).ok()?;
+    let (s, c) = rng
+        .random_range(-std::f64::consts::PI..std::f64::consts::PI)
+        .sin_cos();
+    Some(
+        units[..4]
+            .iter()
+            .map(|&[x, y]| to_image.apply([c * x - s * y, s * x + c * y]))
+            .collect(),
+    )
 }
 
 /// The truth's ROI, outline and keypoints moved by `at` (the box is left as it is).
@@ -251,6 +283,39 @@ mod tests {
             near <= 4,
             "{near} of 16 patch-mode samples on the template corners"
         );
+    }
+
+    /// A cyclic ring marker reaches stage 2 at whatever turn the ring search leaves it: its
+    /// patches, drawn and cut alike, show it turned all round the circle within its ROI.
+    #[test]
+    fn ring_patches_show_the_marker_at_every_turn_within_the_roi() {
+        let family = builtin::get("runetag").unwrap().unwrap();
+        let spec = PatchSpec::for_family(&family);
+        for share in [0.0, 1.0] {
+            let set: Vec<PatchSample> = (0..16)
+                .map(|i| make_sample(&family, &spec, image_seed(5, i), share).unwrap())
+                .collect();
+            // The first keypoint's direction from the ROI's centre, against its top edge's.
+            let mut resultant = [0.0f64; 2];
+            for sample in &set {
+                let roi = &sample.truth.roi;
+                let centre = [
+                    roi[..4].iter().map(|p| p[0]).sum::<f64>() / 4.0,
+                    roi[..4].iter().map(|p| p[1]).sum::<f64>() / 4.0,
+                ];
+                let top = [(roi[0][0] + roi[1][0]) / 2.0, (roi[0][1] + roi[1][1]) / 2.0];
+                let k = &sample.truth.keypoints[0];
+                let angle = (k.y - centre[1]).atan2(k.x - centre[0])
+                    - (top[1] - centre[1]).atan2(top[0] - centre[0]);
+                resultant[0] += angle.cos() / set.len() as f64;
+                resultant[1] += angle.sin() / set.len() as f64;
+            }
+            let spread = resultant[0].hypot(resultant[1]);
+            assert!(
+                spread < 0.5,
+                "camera share {share}: turns cluster ({spread:.2})"
+            );
+        }
     }
 
     /// The truth keypoints of a camera cut land on their cells: black cells read darker than
