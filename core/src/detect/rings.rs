@@ -54,6 +54,14 @@ pub struct RingParams {
     pub min_on_levels: usize,
     /// ... and their least share of the blobs round the centre.
     pub min_share_on_levels: f64,
+    /// How well those dots must keep to one grid of slots round the rings when no affine
+    /// model holds them and only the perspective fit does (see `slot_coherence`: 1 when each
+    /// dot is on a slot, near nought for blobs at random angles). Seven free parameters pass
+    /// concentric ellipses through more clutter than the affine fit's five; the slots do not.
+    pub min_slot_coherence: f64,
+    /// The same when the affine model holds them: small rings' dot centres are a pixel or two
+    /// off a slot a few pixels wide, so only blobs at random angles are turned away.
+    pub min_affine_slot_coherence: f64,
     /// Ring proposals per image at most, largest first (each costs a large stage-2 patch).
     pub budget: usize,
 }
@@ -72,6 +80,8 @@ impl Default for RingParams {
             min_quiet_light: 0.6,
             min_on_levels: 12,
             min_share_on_levels: 0.6,
+            min_slot_coherence: 0.5,
+            min_affine_slot_coherence: 0.1,
             budget: 16,
         }
     }
@@ -89,6 +99,8 @@ pub struct RingShape {
     /// Where the orientation marks' centres are, and their size, when the family has four on
     /// the ROI's corners.
     marks: Option<(f64, f64)>,
+    /// Dot slots round each ring.
+    slots: usize,
 }
 
 impl RingShape {
@@ -117,6 +129,7 @@ impl RingShape {
             outer: 1.0 + ratio,
             hollow: inner_radius * (1.0 - ratio) / outer_radius,
             marks,
+            slots: rings.slots as usize,
         })
     }
 }
@@ -285,6 +298,9 @@ pub fn ring_quads(image: &GrayImage, shapes: &[RingShape], params: &RingParams) 
         let gather = |ellipse: &Ellipse, within: f64| -> Vec<(&Run, usize)> {
             let mut members = Vec::new();
             for (l, blob) in blob_list.iter().enumerate() {
+                if blob.pixels as f64 > MAX_DOT_AREA * hollow * hollow {
+                    continue;
+                }
                 let r = ellipse.radius(blob.centroid());
                 if r <= within && r >= 0.3 {
                     members.extend(runs_by_blob[l].iter().map(|&k| (&runs[k], l)));
@@ -357,6 +373,11 @@ fn same_centre(a: &Quad, b: &Quad) -> bool {
 /// outer dots are 1.68 times as far out as its hollow's edge, its quiet zone ends at 1.9.
 const FIRST_REACH: f64 = 1.8;
 
+/// The largest blob a ring is gathered from, in squared distances from its light centre to the
+/// dark: a dot of the outer ring covers a fortieth of that face on; a blob of many times that
+/// is the ground past the quiet zone, a shadow or print, not a dot or an arc of blurred dots.
+const MAX_DOT_AREA: f64 = 0.25;
+
 /// Fits of a ring's ellipse, each from the blobs within the last.
 const GROW_ROUNDS: usize = 4;
 
@@ -366,9 +387,10 @@ const GROW_ROUNDS: usize = 4;
 const GATHER_GROWING: f64 = 1.2;
 const GATHER_LAST: f64 = 1.05;
 
-/// Rays cast from a light centre, and the shares of them that must find the ring.
+/// Rays cast from a light centre, and the share of them that must find the ring: a sparse code
+/// leaves whole sectors of all its rings empty.
 const RAYS: usize = 32;
-const MIN_RAYS_ON_A_RING: f64 = 0.6;
+const MIN_RAYS_ON_A_RING: f64 = 0.4;
 
 /// Whether most rays from `centre` meet dark within [`RAY_REACH`] times its distance to the dark
 /// and, a ring's width further out (its quiet zone: 1.75 times as far as that first dark, the
@@ -633,8 +655,28 @@ fn ring_roi(
     labels.sort_unstable();
     labels.dedup();
     let centres: Vec<[f64; 2]> = labels.iter().map(|&l| blob_list[l].centroid()).collect();
-    let ring = concentric_fit(&centres, &start, &shape.levels, params)?;
-    let plane = RingPlane::affine(&ring)?.refined(&centres, &shape.levels);
+    // The affine fit where it holds (it is the better start); a close steep view fits none,
+    // and the perspective fit starts from the hull's ellipse.
+    let affine = concentric_fit(&centres, &start, &shape.levels, params);
+    let from = RingPlane::affine(affine.as_ref().unwrap_or(&start))?;
+    let enough = |on_levels: usize| {
+        on_levels >= params.min_on_levels
+            && on_levels as f64 >= params.min_share_on_levels * centres.len() as f64
+    };
+    let plane = match from.refined(&centres, &shape.levels) {
+        Some((plane, on_levels)) if enough(on_levels) => plane,
+        _ if affine.is_some() => from,
+        _ => return None,
+    };
+    let coherence = slot_coherence(&plane, &centres, shape);
+    let least = if affine.is_some() {
+        params.min_affine_slot_coherence
+    } else {
+        params.min_slot_coherence
+    };
+    if coherence < least {
+        return None;
+    }
     let turn = shape
         .marks
         .and_then(|(at, size)| marks_turn(&plane, at, size, blob_list))
@@ -764,12 +806,14 @@ impl RingPlane {
     }
 
     /// The plane whose concentric circles at `levels` pass through the most of `centres` (the
-    /// dots'), refined from `self` by damped Gauss–Newton on each dot's distance to its ring:
-    /// under perspective the rings' ellipses are neither concentric nor scaled copies, and an
-    /// affine fit leaves the ROI's far side short and its centre off the marker's. Kept only
-    /// when it fits the dots better than `self` does and the plane stays in front of the
-    /// camera across the marker.
-    fn refined(&self, centres: &[[f64; 2]], levels: &[f64]) -> Self {
+    /// dots'), fitted from `self`: each dot is given the level nearest its radius, then damped
+    /// Gauss–Newton moves the plane to shorten every dot's distance to its ring, over
+    /// [`LEVEL_ROUNDS`] rounds. Under perspective the rings' ellipses are neither concentric nor
+    /// scaled copies: an affine fit leaves the ROI's far side short and its centre off the
+    /// marker's, and close steep views fit no affine model at all. Returns the plane and how
+    /// many dots lie on its rings; `None` when too few do or the plane turns away from the
+    /// camera across the ROI.
+    fn refined(&self, centres: &[[f64; 2]], levels: &[f64]) -> Option<(Self, usize)> {
         let scale = self.s.determinant().abs().max(f64::MIN_POSITIVE).powf(-0.5);
         // In units of the outer ring's radius about the start's centre, so that the steps
         // of all seven parameters are of one size.
@@ -778,44 +822,68 @@ impl RingPlane {
             .iter()
             .map(|p| (Vector2::new(p[0], p[1]) - origin) / scale)
             .collect();
-        let start = Self {
-            centre: Vector2::zeros(),
-            s: self.s * scale,
-            tilt: Vector2::zeros(),
-        };
         let nearest = |r: f64| {
             (levels.iter().copied())
                 .min_by(|a, b| (a - r).abs().total_cmp(&(b - r).abs()))
                 .unwrap_or(1.0)
         };
-        let on_rings = |plane: &Self| -> Vec<(Vector2<f64>, f64)> {
+        let on_rings = |plane: &Self, tolerance: f64| -> Vec<(Vector2<f64>, f64)> {
             local
                 .iter()
                 .filter_map(|&x| {
                     let r = plane.to_marker([x[0], x[1]]).norm();
                     let level = nearest(r);
-                    ((r - level).abs() <= LEVEL_TOLERANCE).then_some((x, level))
+                    ((r - level).abs() <= tolerance).then_some((x, level))
                 })
                 .collect()
         };
-        let cost = |plane: &Self, dots: &[(Vector2<f64>, f64)]| -> f64 {
+        let mut plane = Self {
+            centre: Vector2::zeros(),
+            s: self.s * scale,
+            tilt: self.tilt * scale,
+        };
+        for round in 0..LEVEL_ROUNDS {
+            let tolerance = if round == 0 {
+                FIRST_LEVEL_TOLERANCE
+            } else {
+                LEVEL_TOLERANCE
+            };
+            let dots = on_rings(&plane, tolerance);
+            if dots.len() < 2 * TILT_PARAMETERS {
+                return None;
+            }
+            plane = plane.descended(&dots);
+            if !plane.in_front() {
+                return None;
+            }
+        }
+        let on_levels = on_rings(&plane, LEVEL_TOLERANCE).len();
+        Some((
+            Self {
+                centre: origin + plane.centre * scale,
+                s: plane.s / scale,
+                tilt: plane.tilt / scale,
+            },
+            on_levels,
+        ))
+    }
+
+    /// Damped Gauss–Newton from `self` on the dots' distances to their rings ((dot, level)
+    /// pairs).
+    fn descended(&self, dots: &[(Vector2<f64>, f64)]) -> Self {
+        let cost = |plane: &Self| -> f64 {
             dots.iter()
                 .map(|(x, level)| (plane.to_marker([x[0], x[1]]).norm() - level).powi(2))
                 .sum()
         };
-        let dots = on_rings(&start);
-        if dots.len() < 2 * TILT_PARAMETERS {
-            return *self;
-        }
-        let first_cost = cost(&start, &dots);
-        let mut plane = start;
+        let mut plane = *self;
         let mut damping = 1e-3;
         for _ in 0..TILT_ITERATIONS {
             let (mut normal, mut gradient) = (
                 nalgebra::SMatrix::<f64, TILT_PARAMETERS, TILT_PARAMETERS>::zeros(),
                 nalgebra::SVector::<f64, TILT_PARAMETERS>::zeros(),
             );
-            for (x, level) in &dots {
+            for (x, level) in dots {
                 let d = x - plane.centre;
                 let w = 1.0 + plane.tilt.dot(&d);
                 let u = plane.s * d / w;
@@ -827,14 +895,15 @@ impl RingPlane {
                     along[0] * d[0] / w,
                     (along[0] * d[1] + along[1] * d[0]) / w,
                     along[1] * d[1] / w,
-                    -along.dot(&u) * d[0] / w,
-                    -along.dot(&u) * d[1] / w,
+                    -r * d[0] / w,
+                    -r * d[1] / w,
                     (along.transpose() * toward_centre)[0],
                     (along.transpose() * toward_centre)[1],
                 ]);
                 normal += row * row.transpose();
                 gradient += row * (r - level);
             }
+            let now = cost(&plane);
             let mut improved = false;
             while damping < 1e6 {
                 let mut damped = normal;
@@ -849,7 +918,7 @@ impl RingPlane {
                     tilt: plane.tilt + Vector2::new(step[3], step[4]),
                     centre: plane.centre + Vector2::new(step[5], step[6]),
                 };
-                if cost(&trial, &dots) < cost(&plane, &dots) {
+                if cost(&trial) < now {
                     plane = trial;
                     damping = (damping / 10.0).max(1e-9);
                     improved = true;
@@ -861,24 +930,19 @@ impl RingPlane {
                 break;
             }
         }
-        // In front of the camera over the whole ROI: 1 + vᵀd stays well above nought at its
-        // corners.
-        let in_front = [[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]]
+        plane
+    }
+
+    /// Whether the plane stays in front of the camera over the whole ROI: 1 + vᵀd stays well
+    /// above nought at its corners.
+    fn in_front(&self) -> bool {
+        [[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]]
             .iter()
             .all(|&[a, b]| {
-                plane.to_image(Vector2::new(a, b)).is_some_and(|p| {
-                    1.0 + plane.tilt.dot(&(Vector2::new(p[0], p[1]) - plane.centre))
-                        > MIN_DEPTH_RATIO
+                self.to_image(Vector2::new(a, b)).is_some_and(|p| {
+                    1.0 + self.tilt.dot(&(Vector2::new(p[0], p[1]) - self.centre)) > MIN_DEPTH_RATIO
                 })
-            });
-        if !in_front || cost(&plane, &dots) >= first_cost {
-            return *self;
-        }
-        Self {
-            centre: origin + plane.centre * scale,
-            s: plane.s / scale,
-            tilt: plane.tilt / scale,
-        }
+            })
     }
 }
 
@@ -891,6 +955,29 @@ const TILT_ITERATIONS: usize = 20;
 /// The least ratio of a ROI corner's depth to the centre's the perspective fit may leave: a
 /// ring seen so steeply that its far corner is three times as far is past what stage 2 reads.
 const MIN_DEPTH_RATIO: f64 = 0.33;
+
+/// How well the dots on `plane`'s rings keep to one grid of slots: the length of the mean of
+/// e^(i·slots·θ) over their angles θ about the centre, 1 when every dot sits on a slot and
+/// about 1/√n for n dots at random angles. Clutter that some ellipses happen to pass through
+/// does not keep to the slots; a ring seen in perspective does, once the plane is right.
+fn slot_coherence(plane: &RingPlane, centres: &[[f64; 2]], shape: &RingShape) -> f64 {
+    let (mut sum, mut count) = (Vector2::zeros(), 0usize);
+    for &p in centres {
+        let u = plane.to_marker(p);
+        let r = u.norm();
+        if !shape
+            .levels
+            .iter()
+            .any(|l| (r - l).abs() <= LEVEL_TOLERANCE)
+        {
+            continue;
+        }
+        let phase = shape.slots as f64 * u[1].atan2(u[0]);
+        sum += Vector2::new(phase.cos(), phase.sin());
+        count += 1;
+    }
+    sum.norm() / count.max(1) as f64
+}
 
 /// Rounds of giving each dot its level and fitting the rings again.
 const LEVEL_ROUNDS: usize = 4;
@@ -967,11 +1054,20 @@ mod tests {
     }
 
     fn scenes(family: &Family, seeds: std::ops::Range<u64>, view_deg: f64) -> Vec<Sample> {
+        scenes_at(family, seeds, [0.25, 0.4], [0.0, view_deg])
+    }
+
+    fn scenes_at(
+        family: &Family,
+        seeds: std::ops::Range<u64>,
+        distance_m: [f64; 2],
+        view_deg: [f64; 2],
+    ) -> Vec<Sample> {
         let mut config = SynthConfig::new(Mode::Camera);
         config.markers = [2, 2];
         config.side_m = [0.05, 0.05];
-        config.distance_m = [0.25, 0.4];
-        config.view_angle_deg = [0.0, view_deg];
+        config.distance_m = distance_m;
+        config.view_angle_deg = view_deg;
         seeds
             .map(|seed| synthesize(family, &config, seed).unwrap())
             .collect()
@@ -1039,6 +1135,17 @@ mod tests {
         let shape = RingShape::of(&family).unwrap();
         let [found, markers, _] = tally(&scenes(&family, 0..10, 30.0), &shape, same_ring);
         assert!(found * 10 >= markers * 4, "{found} of {markers}");
+    }
+
+    /// A ring close and steep is far from an affine view (its near side up to half as large
+    /// again as its far side): the perspective fit holds it where no affine model does.
+    #[test]
+    fn close_steep_runetags_get_their_ring_roi() {
+        let family = family("runetag");
+        let shape = RingShape::of(&family).unwrap();
+        let samples = scenes_at(&family, 0..10, [0.15, 0.25], [35.0, 50.0]);
+        let [found, markers, _] = tally(&samples, &shape, same_ring);
+        assert!(found * 10 >= markers * 5, "{found} of {markers}");
     }
 
     #[test]
@@ -1127,7 +1234,8 @@ mod tests {
         let start = fit_ellipse(&outer).unwrap();
         let ring = concentric_fit(&centres, &start, &levels, &RingParams::default()).unwrap();
         let affine = RingPlane::affine(&ring).unwrap();
-        let fitted = affine.refined(&centres, &levels);
+        let (fitted, on_levels) = affine.refined(&centres, &levels).unwrap();
+        assert_eq!(on_levels, centres.len());
         let miss = |plane: &RingPlane| {
             [
                 [-1.0, -1.0],

@@ -302,7 +302,15 @@ pub fn synthesize_mixed(
                     .map(|&p| placement.to_image.apply(p))
                     .collect()
             } else {
-                project_outline(family, &placement.to_image)
+                // A ring turned within its ROI is drawn where its unturned self would be; the
+                // corners of its paper may then leave a patch, which clips them.
+                project_outline(
+                    family,
+                    placement
+                        .roi_to_image
+                        .as_ref()
+                        .unwrap_or(&placement.to_image),
+                )
             };
             let b = bounding_box(&outline);
             let inside = b[0] >= 0.0
