@@ -46,7 +46,8 @@ fn families_lists_every_builtin_with_stats() {
     assert_eq!(cols("topotag-like")[6], "named");
     assert_eq!(cols("apriltag-standard41h12")[6], "named");
     assert_eq!(cols("apriltag-circle21h7")[6], "named");
-    assert_eq!(cols("runetag")[6], "train");
+    assert_eq!(cols("runetag")[6], "named");
+    assert_eq!(cols("runetag-plus")[6], "train");
 }
 
 #[test]

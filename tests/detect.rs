@@ -216,12 +216,12 @@ fn detect_rejects_bad_rois_and_models_with_clear_errors() {
 
     let run = tagsmith(
         dir.path(),
-        &["detect", img, "--family", "runetag", "--roi", &roi],
+        &["detect", img, "--family", "runetag-plus", "--roi", &roi],
     );
     assert_eq!(run.code, 2);
     assert!(
         run.stderr
-            .contains("no weights are shipped for family \"runetag\""),
+            .contains("no weights are shipped for family \"runetag-plus\""),
         "{}",
         run.stderr
     );
@@ -344,11 +344,11 @@ fn stage_2_fine_tunes_from_the_shipped_weights() {
     let id_accuracy = report["validation"][0][1]["id_accuracy"].as_f64().unwrap();
     assert!(id_accuracy >= 0.9, "ID accuracy {id_accuracy}");
 
-    let run = tagsmith(dir.path(), &args("runetag", &["--init", "shipped"]));
+    let run = tagsmith(dir.path(), &args("runetag-plus", &["--init", "shipped"]));
     assert_eq!(run.code, 2);
     assert!(
         run.stderr
-            .contains("no stage-2 model is shipped for runetag"),
+            .contains("no stage-2 model is shipped for runetag-plus"),
         "{}",
         run.stderr
     );

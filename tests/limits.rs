@@ -677,8 +677,8 @@ fn a_bad_scenario_or_a_design_without_weights_is_refused_before_rendering() {
         &["zoom.json", "sweeps[0].condition"],
     );
     run(
-        &compare("scene.json", &["apriltag-36h11", "runetag"]),
-        &["runetag", "no weights"],
+        &compare("scene.json", &["apriltag-36h11", "runetag-plus"]),
+        &["runetag-plus", "no weights"],
     );
     run(&compare("scene.json", &["apriltag-36h11"]), &["FAMILIES"]);
 }

@@ -72,6 +72,7 @@ assets!(
         "models/apriltag-xa-36h11.stage2.bin",
         "models/apriltag-standard41h12.stage2.bin",
         "models/apriltag-circle21h7.stage2.bin",
+        "models/runetag.stage2.bin",
     ],
 );
 

@@ -5,11 +5,11 @@ use crate::geometry::Quad;
 
 #[test]
 fn a_family_without_weights_is_named_with_the_command_that_trains_them() {
-    let family = crate::builtin::get("runetag").unwrap().unwrap();
+    let family = crate::builtin::get("runetag-plus").unwrap().unwrap();
     let e = Detector::shipped(vec![family]).err().unwrap().to_string();
-    assert!(e.contains("runetag"), "{e}");
+    assert!(e.contains("runetag-plus"), "{e}");
     assert!(
-        e.contains("tagsmith train runetag --stage keypoints"),
+        e.contains("tagsmith train runetag-plus --stage keypoints"),
         "{e}"
     );
     let stage1 = Stage1::shipped().unwrap();

@@ -70,7 +70,13 @@ const SHIPPED: &[(&str, &str)] = &[
         "apriltag-circle21h7",
         "models/apriltag-circle21h7.stage2.bin",
     ),
+    // Rings: a 256-px patch, one keypoint per slot, trained on the ring turned anywhere within
+    // its ROI (the ring search fixes no turn).
+    ("runetag", RINGS),
 ];
+
+/// RuneTag's: three rings of 43 slots.
+const RINGS: &str = "models/runetag.stage2.bin";
 
 /// The built-in families with shipped stage-2 weights.
 pub fn shipped_families() -> impl Iterator<Item = &'static str> {
@@ -85,9 +91,14 @@ pub fn shipped_families() -> impl Iterator<Item = &'static str> {
 pub const DEFAULT_FAMILIES: &[&str] = &["apriltag-36h11", "apriltag-xo-36h11", "aruco-6x6_250"];
 
 /// The shipped models a new design's stage 2 can be fine-tuned from, in the order they are
-/// preferred: the grid model (two categories) and the XO model (a frame and two glyphs).
+/// preferred: the grid model (two categories), the XO model (a frame and two glyphs) and the
+/// ring model (dots round rings, on the larger patch).
 #[cfg(feature = "detect")]
-const FINE_TUNE_MODELS: &[&str] = &[GRID_8_BLACK_WHITE, "models/apriltag-xo-36h11.stage2.bin"];
+const FINE_TUNE_MODELS: &[&str] = &[
+    GRID_8_BLACK_WHITE,
+    "models/apriltag-xo-36h11.stage2.bin",
+    RINGS,
+];
 
 /// Where a new design's stage 2 starts when fine-tuned ([`fine_tune_start`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -109,8 +120,9 @@ impl FineTuneStart {
 /// whole (as many categories, the same patch side), else the grid model with a fresh class head
 /// where the patch side fits. What the trunk learned of frames, cells and perspective carries
 /// over, so a few thousand steps do what a fresh network needs ten thousand for (BENCHMARKS.md,
-/// "Every family detecting"). `None`: the design's patch is another size (dense keypoints,
-/// rings); it trains from fresh weights.
+/// "Every family detecting"). A ring design starts from the ring model the same way. `None`:
+/// the design's patch is a size no shipped model has (dense keypoints); it trains from fresh
+/// weights.
 #[cfg(feature = "detect")]
 pub fn fine_tune_start(family: &crate::Family) -> Option<FineTuneStart> {
     // Read once: the Train panel asks on every frame.

@@ -159,8 +159,8 @@ fn reliability_is_the_share_among_admitted_categories() {
 
 /// A new design starts from a shipped model whose network fits it whole (the grid model for two
 /// categories of any grid size, the XO model for a frame and two glyphs), else from the grid
-/// model with a fresh class head (quaternary cells); a design whose patch is another size (rings)
-/// trains from fresh weights.
+/// model with a fresh class head (quaternary cells); a ring design from the ring model, whole or
+/// with a class head of its own (RuneTag+'s orientation marks are a third category).
 #[cfg(feature = "detect")]
 #[test]
 fn new_designs_fine_tune_from_the_shipped_model_that_fits_them() {
@@ -179,7 +179,9 @@ fn new_designs_fine_tune_from_the_shipped_model_that_fits_them() {
         );
     }
     assert_eq!(start("quaternary-6x6"), Some((grid, true)));
-    assert_eq!(start("runetag"), None);
+    let rings = "models/runetag.stage2.bin";
+    assert_eq!(start("runetag"), Some((rings, false)));
+    assert_eq!(start("runetag-plus"), Some((rings, true)));
 }
 
 /// The weights of a model fine-tuned for a design of other categories: the trunk is the model's,
