@@ -682,7 +682,7 @@ fn ring_roi(
         .and_then(|(at, size)| marks_turn(&plane, at, size, blob_list))
         .unwrap_or(0.0);
     let (s, c) = turn.sin_cos();
-    let corner = |u: f64, v: f64| plane.to_image(Vector2::new(c * u - s * v, s * u + c * v));
+    let corner = |u: f64, v: f64| plane.image_point(Vector2::new(c * u - s * v, s * u + c * v));
     Some(Quad([
         corner(-1.0, -1.0)?,
         corner(1.0, -1.0)?,
@@ -794,12 +794,12 @@ impl RingPlane {
         })
     }
 
-    fn to_marker(&self, p: [f64; 2]) -> Vector2<f64> {
+    fn marker_point(&self, p: [f64; 2]) -> Vector2<f64> {
         let d = Vector2::new(p[0], p[1]) - self.centre;
         self.s * d / (1.0 + self.tilt.dot(&d))
     }
 
-    fn to_image(&self, u: Vector2<f64>) -> Option<[f64; 2]> {
+    fn image_point(&self, u: Vector2<f64>) -> Option<[f64; 2]> {
         let d = (self.s - u * self.tilt.transpose()).try_inverse()? * u;
         let p = self.centre + d;
         Some([p[0], p[1]])
@@ -831,7 +831,7 @@ impl RingPlane {
             local
                 .iter()
                 .filter_map(|&x| {
-                    let r = plane.to_marker([x[0], x[1]]).norm();
+                    let r = plane.marker_point([x[0], x[1]]).norm();
                     let level = nearest(r);
                     ((r - level).abs() <= tolerance).then_some((x, level))
                 })
@@ -873,7 +873,7 @@ impl RingPlane {
     fn descended(&self, dots: &[(Vector2<f64>, f64)]) -> Self {
         let cost = |plane: &Self| -> f64 {
             dots.iter()
-                .map(|(x, level)| (plane.to_marker([x[0], x[1]]).norm() - level).powi(2))
+                .map(|(x, level)| (plane.marker_point([x[0], x[1]]).norm() - level).powi(2))
                 .sum()
         };
         let mut plane = *self;
@@ -939,7 +939,7 @@ impl RingPlane {
         [[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]]
             .iter()
             .all(|&[a, b]| {
-                self.to_image(Vector2::new(a, b)).is_some_and(|p| {
+                self.image_point(Vector2::new(a, b)).is_some_and(|p| {
                     1.0 + self.tilt.dot(&(Vector2::new(p[0], p[1]) - self.centre)) > MIN_DEPTH_RATIO
                 })
             })
@@ -963,7 +963,7 @@ const MIN_DEPTH_RATIO: f64 = 0.33;
 fn slot_coherence(plane: &RingPlane, centres: &[[f64; 2]], shape: &RingShape) -> f64 {
     let (mut sum, mut count) = (Vector2::zeros(), 0usize);
     for &p in centres {
-        let u = plane.to_marker(p);
+        let u = plane.marker_point(p);
         let r = u.norm();
         if !shape
             .levels
@@ -1030,7 +1030,7 @@ fn marks_turn(plane: &RingPlane, at: f64, size: f64, blob_list: &[Blob]) -> Opti
         if pixels < least.max(2.0) || pixels > most {
             continue;
         }
-        let u = plane.to_marker(blob.centroid());
+        let u = plane.marker_point(blob.centroid());
         let r = u.norm();
         if (r - at).abs() > 0.2 * at {
             continue;
@@ -1222,13 +1222,13 @@ mod tests {
             .filter(|k| k % 3 == 0 || k % 5 == 1)
             .filter_map(|k| {
                 let t = (k / 3) as f64 * std::f64::consts::TAU / 43.0;
-                truth.to_image(Vector2::new(t.cos(), t.sin()) * levels[k % 3])
+                truth.image_point(Vector2::new(t.cos(), t.sin()) * levels[k % 3])
             })
             .collect();
         let outer: Vec<[f64; 2]> = (0..40)
             .filter_map(|k| {
                 let t = k as f64 * std::f64::consts::TAU / 40.0;
-                truth.to_image(Vector2::new(t.cos(), t.sin()))
+                truth.image_point(Vector2::new(t.cos(), t.sin()))
             })
             .collect();
         let start = fit_ellipse(&outer).unwrap();
@@ -1247,8 +1247,8 @@ mod tests {
             .iter()
             .map(|&[a, b]| {
                 let (p, q) = (
-                    plane.to_image(Vector2::new(a, b)).unwrap(),
-                    truth.to_image(Vector2::new(a, b)).unwrap(),
+                    plane.image_point(Vector2::new(a, b)).unwrap(),
+                    truth.image_point(Vector2::new(a, b)).unwrap(),
                 );
                 ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)).sqrt()
             })
