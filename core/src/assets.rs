@@ -159,7 +159,7 @@ mod tests {
         for path in MODELS.iter().copied() {
             assert!(file(path).starts_with(b"TAGSMITH"), "{path}");
         }
-        assert_eq!(all().count(), 23);
+        assert_eq!(all().count(), 24);
     }
 
     #[test]
