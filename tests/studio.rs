@@ -1187,8 +1187,8 @@ fn the_compare_panel_runs_a_sweep_and_the_command_line_agrees() {
 
 /// Train panel: a design of two categories starts from the shipped grid model (a fine-tune at
 /// its own steps and learning rate, the model's width), and says so; a quaternary design from
-/// its trunk with a fresh class head; a ring design, whose patch no shipped model fits, from
-/// fresh weights; unticking goes back to the fresh defaults.
+/// its trunk with a fresh class head; a ring design from the ring model, whole or its trunk;
+/// unticking goes back to the fresh defaults.
 #[test]
 fn the_train_panel_fine_tunes_a_design_from_the_shipped_model_that_fits_it() {
     use tagsmith_studio::studio::train::{Settings, FINE_TUNE_STEPS};
@@ -1236,14 +1236,24 @@ fn the_train_panel_fine_tunes_a_design_from_the_shipped_model_that_fits_it() {
     h.state_mut().save();
     h.run();
 
-    // Rings: no shipped model's patch fits; fresh weights.
+    // Rings: the ring model, whole for a design of RuneTag's categories, its trunk for one with
+    // orientation marks (a third category).
     h.get_by_label("Families").click();
     h.run();
     duplicate(&mut h, "runetag");
     h.get_by_label("Train").click();
     h.run();
-    assert!(!h.state().train.settings.fine_tune);
-    assert_eq!(h.state().train.settings.steps, Settings::default().steps);
+    assert!(h.state().train.settings.fine_tune);
+    h.get_by_label("runetag: the same number of categories as this design");
+    h.state_mut().save();
+    h.run();
+    h.get_by_label("Families").click();
+    h.run();
+    duplicate(&mut h, "runetag-plus");
+    h.get_by_label("Train").click();
+    h.run();
+    assert!(h.state().train.settings.fine_tune);
+    h.get_by_label("runetag, its trunk; the class head learns this design's categories afresh");
 }
 
 /// A design duplicated from a built-in, with the layout a shipped model learned, detects with no
