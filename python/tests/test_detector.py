@@ -135,7 +135,7 @@ def test_bad_settings_name_the_argument():
     with pytest.raises(ValueError, match="refine"):
         tagsmith.Detector(families=["apriltag-36h11"], refine="sideways")
     with pytest.raises(ValueError, match="no weights are shipped"):
-        tagsmith.Detector(families=["runetag"])
+        tagsmith.Detector(families=["runetag-plus"])
     with pytest.raises(ValueError, match="no built-in family or file named"):
         tagsmith.Detector(families=["apriltag-99h1"])
     with pytest.raises(ValueError, match="channels"):

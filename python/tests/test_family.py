@@ -17,7 +17,8 @@ def test_every_built_in_family_loads_and_renders():
         assert image.min() < 80 and image.max() > 180, name
         assert isinstance(family.validate(), list)
     assert tagsmith.Family.load("apriltag-36h11").has_shipped_weights
-    assert not tagsmith.Family.load("runetag").has_shipped_weights
+    assert tagsmith.Family.load("runetag").has_shipped_weights
+    assert not tagsmith.Family.load("runetag-plus").has_shipped_weights
 
 
 def test_render_refuses_an_unknown_id():
