@@ -207,12 +207,15 @@ fn turned(
     image: GrayImage,
     truth: MarkerTruth,
 ) -> PatchSample {
-    // Only layouts that map onto themselves under a quarter turn (grids) can be seen turned by
-    // one; ring markers' ROI fixes their orientation.
+    // Layouts that map onto themselves under a quarter turn (grids) are seen turned by one, and
+    // so is a ring family with one rotation: its orientation marks on the ROI's corners fix
+    // the ROI only up to which mark comes first (the detector's sort tries all four). A cyclic
+    // ring family is already turned anywhere within its ROI.
     let turns = family
         .rotations()
         .iter()
-        .any(|r| (r.angle_deg - 90.0).abs() < 1e-9);
+        .any(|r| (r.angle_deg - 90.0).abs() < 1e-9)
+        || (!family.is_grid() && family.rotations().len() == 1);
     let quarter = if turns {
         seed.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 62
     } else {
@@ -324,6 +327,28 @@ mod tests {
                 "camera share {share}: turns kept near the axes ({axial:.2})"
             );
         }
+    }
+
+    /// RuneTag+'s patches show it at all four quarter turns: the detector's ROI starts at
+    /// whichever of its four orientation marks.
+    #[test]
+    fn ring_patches_with_orientation_marks_show_every_quarter_turn() {
+        let family = builtin::get("runetag-plus").unwrap().unwrap();
+        let spec = PatchSpec::for_family(&family);
+        let mut first_corners = std::collections::BTreeSet::new();
+        for i in 0..16 {
+            let sample = make_sample(&family, &spec, image_seed(7, i), 0.0).unwrap();
+            let p = sample.truth.roi[0];
+            let nearest = (spec.template_corners().iter().enumerate())
+                .min_by(|a, b| {
+                    let d = |t: &[f64; 2]| (p[0] - t[0]).hypot(p[1] - t[1]);
+                    d(a.1).total_cmp(&d(b.1))
+                })
+                .unwrap()
+                .0;
+            first_corners.insert(nearest);
+        }
+        assert_eq!(first_corners.len(), 4, "{first_corners:?}");
     }
 
     /// The truth keypoints of a camera cut land on their cells: black cells read darker than
