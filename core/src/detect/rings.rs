@@ -87,6 +87,14 @@ impl Default for RingParams {
     }
 }
 
+impl RingParams {
+    /// Whether `on_levels` of a ring's `blobs` lying on its rings are enough for a ring.
+    fn enough_on_levels(&self, on_levels: usize, blobs: usize) -> bool {
+        on_levels >= self.min_on_levels
+            && on_levels as f64 >= self.min_share_on_levels * blobs.max(1) as f64
+    }
+}
+
 /// What the search looks for, from a ring family's layout (in outer-ring radii).
 #[derive(Debug, Clone, PartialEq)]
 pub struct RingShape {
@@ -659,12 +667,8 @@ fn ring_roi(
     // and the perspective fit starts from the hull's ellipse.
     let affine = concentric_fit(&centres, &start, &shape.levels, params);
     let from = RingPlane::affine(affine.as_ref().unwrap_or(&start))?;
-    let enough = |on_levels: usize| {
-        on_levels >= params.min_on_levels
-            && on_levels as f64 >= params.min_share_on_levels * centres.len() as f64
-    };
     let plane = match from.refined(&centres, &shape.levels) {
-        Some((plane, on_levels)) if enough(on_levels) => plane,
+        Some((plane, on_levels)) if params.enough_on_levels(on_levels, centres.len()) => plane,
         _ if affine.is_some() => from,
         _ => return None,
     };
@@ -718,11 +722,6 @@ fn concentric_fit(
         centre: Vector2::zeros(),
         q: start.q * scale * scale,
     };
-    let nearest = |r: f64| {
-        (levels.iter().copied())
-            .min_by(|a, b| (a - r).abs().total_cmp(&(b - r).abs()))
-            .unwrap_or(1.0)
-    };
     let mut on_levels = 0;
     for round in 0..LEVEL_ROUNDS {
         let tolerance = if round == 0 {
@@ -735,7 +734,7 @@ fn concentric_fit(
         for &p in centres {
             let x = local(p);
             let r = ellipse.radius([x[0], x[1]]);
-            let level = nearest(r);
+            let level = nearest_level(levels, r);
             if (r - level).abs() > tolerance {
                 continue;
             }
@@ -765,11 +764,12 @@ fn concentric_fit(
         }
         ellipse = Ellipse { centre, q };
     }
-    let share = on_levels as f64 / centres.len().max(1) as f64;
-    (on_levels >= params.min_on_levels && share >= params.min_share_on_levels).then(|| Ellipse {
-        centre: origin + ellipse.centre * scale,
-        q: ellipse.q / (scale * scale),
-    })
+    params
+        .enough_on_levels(on_levels, centres.len())
+        .then(|| Ellipse {
+            centre: origin + ellipse.centre * scale,
+            q: ellipse.q / (scale * scale),
+        })
 }
 
 /// A ring marker's plane as the image shows it: a marker point u (in outer-ring radii, about
@@ -822,17 +822,12 @@ impl RingPlane {
             .iter()
             .map(|p| (Vector2::new(p[0], p[1]) - origin) / scale)
             .collect();
-        let nearest = |r: f64| {
-            (levels.iter().copied())
-                .min_by(|a, b| (a - r).abs().total_cmp(&(b - r).abs()))
-                .unwrap_or(1.0)
-        };
         let on_rings = |plane: &Self, tolerance: f64| -> Vec<(Vector2<f64>, f64)> {
             local
                 .iter()
                 .filter_map(|&x| {
                     let r = plane.marker_point([x[0], x[1]]).norm();
-                    let level = nearest(r);
+                    let level = nearest_level(levels, r);
                     ((r - level).abs() <= tolerance).then_some((x, level))
                 })
                 .collect()
@@ -965,11 +960,7 @@ fn slot_coherence(plane: &RingPlane, centres: &[[f64; 2]], shape: &RingShape) ->
     for &p in centres {
         let u = plane.marker_point(p);
         let r = u.norm();
-        if !shape
-            .levels
-            .iter()
-            .any(|l| (r - l).abs() <= LEVEL_TOLERANCE)
-        {
+        if (r - nearest_level(&shape.levels, r)).abs() > LEVEL_TOLERANCE {
             continue;
         }
         let phase = shape.slots as f64 * u[1].atan2(u[0]);
@@ -977,6 +968,13 @@ fn slot_coherence(plane: &RingPlane, centres: &[[f64; 2]], shape: &RingShape) ->
         count += 1;
     }
     sum.norm() / count.max(1) as f64
+}
+
+/// The level (ring radius) nearest `r`.
+fn nearest_level(levels: &[f64], r: f64) -> f64 {
+    (levels.iter().copied())
+        .min_by(|a, b| (a - r).abs().total_cmp(&(b - r).abs()))
+        .unwrap_or(1.0)
 }
 
 /// Rounds of giving each dot its level and fitting the rings again.

@@ -159,6 +159,18 @@ impl Family {
         matches!(self.spec.layout, spec::Layout::Grid(_))
     }
 
+    /// A ring layout whose every slot shift is a rotation (RuneTag): nothing but its code tells
+    /// one turn of it from another, so a ring search may give its ROI at any turn.
+    pub fn is_cyclic_ring(&self) -> bool {
+        !self.is_grid() && self.rotations().len() > 1
+    }
+
+    /// A ring layout with one rotation (RuneTag+): its orientation marks on the ROI's corners
+    /// fix its turn only up to which mark comes first.
+    pub fn is_ring_turned_by_marks(&self) -> bool {
+        !self.is_grid() && self.rotations().len() == 1
+    }
+
     /// The category drawn at every keypoint for code `id`.
     pub fn keypoint_categories(&self, id: usize) -> Option<Vec<usize>> {
         let code = self.codebook.code(id)?;

@@ -252,6 +252,13 @@ struct Placement {
     pose: Option<(Pose, f64)>,
 }
 
+impl Placement {
+    /// Marker units → image for the ROI (and the outline that must fit the image).
+    fn roi_map(&self) -> &Homography {
+        self.roi_to_image.as_ref().unwrap_or(&self.to_image)
+    }
+}
+
 pub fn synthesize(family: &Family, config: &SynthConfig, seed: u64) -> Result<Sample, SynthError> {
     synthesize_mixed(&[family], config, seed)
 }
@@ -304,13 +311,7 @@ pub fn synthesize_mixed(
             } else {
                 // A ring turned within its ROI is drawn where its unturned self would be; the
                 // corners of its paper may then leave a patch, which clips them.
-                project_outline(
-                    family,
-                    placement
-                        .roi_to_image
-                        .as_ref()
-                        .unwrap_or(&placement.to_image),
-                )
+                project_outline(family, placement.roi_map())
             };
             let b = bounding_box(&outline);
             let inside = b[0] >= 0.0
@@ -514,8 +515,8 @@ fn place_patch(
 /// its ellipse at whatever turn, so the patch shows the marker, its paper and its code turned
 /// within a ROI that stays on the template's corners; a network shown only upright rings misses
 /// most of their dots once they are turned by an eighth.
-fn ring_turn(family: &Family, rng: &mut ChaCha8Rng) -> nalgebra::Matrix3<f64> {
-    if family.is_grid() || family.rotations().len() < 2 {
+pub(crate) fn ring_turn(family: &Family, rng: &mut ChaCha8Rng) -> nalgebra::Matrix3<f64> {
+    if !family.is_cyclic_ring() {
         return nalgebra::Matrix3::identity();
     }
     let (s, c) = rng
@@ -786,15 +787,7 @@ fn marker_truth(
         roi: family
             .roi_points()
             .iter()
-            .map(|&p| {
-                to_pixel(
-                    placement
-                        .roi_to_image
-                        .as_ref()
-                        .unwrap_or(&placement.to_image)
-                        .apply(p),
-                )
-            })
+            .map(|&p| to_pixel(placement.roi_map().apply(p)))
             .collect(),
         keypoints,
         mask,

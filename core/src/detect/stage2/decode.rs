@@ -58,9 +58,9 @@ pub fn read_patch(family: &Family, spec: &PatchSpec, raw: &RawOutputs) -> Option
 }
 
 /// Turns of the template within one slot's angle tried on a ring family (radians; none on a
-/// grid). A ring proposal's turn is wherever its ellipse left it, and the network, trained on
-/// markers turned as their ROI, finds the dots where they are but places the template as the
-/// patch is turned: up to half a slot off, which the sort's half-pitch match cannot span.
+/// grid). A ring proposal's turn is wherever its ellipse left it: the network finds the dots
+/// where they are but places the template as the patch is turned, up to half a slot off the
+/// dots, which the sort's half-pitch match cannot span.
 fn slot_turns(family: &Family) -> Vec<f64> {
     match &family.spec().layout {
         crate::family::spec::Layout::Rings(rings) if rings.slots > 0 => {
@@ -94,7 +94,7 @@ fn turned_about_centre(quad: &Quad, angle: f64) -> Quad {
 /// alone (RuneTag+: its ring proposals put a mark on each corner, but not which), where no
 /// rotation of the layout tells them apart for the decoder; one otherwise.
 fn turns_to_try(family: &Family) -> usize {
-    if !family.is_grid() && family.rotations().len() == 1 {
+    if family.is_ring_turned_by_marks() {
         4
     } else {
         1

@@ -11,7 +11,7 @@ use crate::detect::stage2::normalise_patch;
 use crate::family::Family;
 use crate::geometry::{bounding_box, warp_bilinear, Homography, Quad};
 use crate::image::GrayImage;
-use crate::synth::{synthesize, KeypointTruth, MarkerTruth, Mode, SynthConfig};
+use crate::synth::{ring_turn, synthesize, KeypointTruth, MarkerTruth, Mode, SynthConfig};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -166,20 +166,13 @@ fn ring_roi_turned(
     roi: &[[f64; 2]],
     rng: &mut ChaCha8Rng,
 ) -> Option<Vec<[f64; 2]>> {
-    if family.is_grid() || family.rotations().len() < 2 {
+    if !family.is_cyclic_ring() {
         return Some(roi.to_vec());
     }
     let units = family.roi_points();
     let to_image = Homography::from_points(&units[..4], &roi[..4]).ok()?;
-    let (s, c) = rng
-        .random_range(-std::f64::consts::PI..std::f64::consts::PI)
-        .sin_cos();
-    Some(
-        units[..4]
-            .iter()
-            .map(|&[x, y]| to_image.apply([c * x - s * y, s * x + c * y]))
-            .collect(),
-    )
+    let turned = Homography(to_image.0 * ring_turn(family, rng));
+    Some(units[..4].iter().map(|&p| turned.apply(p)).collect())
 }
 
 /// The truth's ROI, outline and keypoints moved by `at` (the box is left as it is).
@@ -215,7 +208,7 @@ fn turned(
         .rotations()
         .iter()
         .any(|r| (r.angle_deg - 90.0).abs() < 1e-9)
-        || (!family.is_grid() && family.rotations().len() == 1);
+        || family.is_ring_turned_by_marks();
     let quarter = if turns {
         seed.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 62
     } else {
